@@ -1,0 +1,148 @@
+"""Randomised low-discrepancy directions and Monte Carlo SH projection.
+
+A vertex's estimate uses R replicates of one Fibonacci lattice, each replicate shifted modulo 1 by its own
+hashed offset (Cranley-Patterson rotation). Every shifted point is uniform on the unit square, so each
+replicate is an unbiased estimate, and the spread of the R replicates is an honest standard error, while each
+replicate keeps the lattice's faster-than-Monte-Carlo convergence.
+"""
+
+import numpy as np
+
+from . import sh
+
+# Golden ratio conjugate: the generator whose lattice spreads best for every point count.
+_GOLDEN = (np.sqrt(5.0) - 1.0) / 2.0
+# splitmix64 constants: the Weyl increment 2^64/φ and the finaliser's multipliers.
+_WEYL = np.uint64(0x9E3779B97F4A7C15)
+_MIX_1 = np.uint64(0xBF58476D1CE4E5B9)
+_MIX_2 = np.uint64(0x94D049BB133111EB)
+# Hash values produced per pass: small enough that the uint64 temporaries stay in cache.
+_HASH_CHUNK = 1 << 16
+
+
+def _mix64(x):
+    """splitmix64's finaliser on a uint64 array (in place): a bijection in which every input bit flips about
+    half of the output bits. uint64 products wrap modulo 2^64, as the hash intends."""
+    x ^= x >> np.uint64(30)
+    x *= _MIX_1
+    x ^= x >> np.uint64(27)
+    x *= _MIX_2
+    x ^= x >> np.uint64(31)
+    return x
+
+
+def _stream_starts(seed, keys):
+    """One independent splitmix64 stream per key: a mixed (seed, key) pair."""
+    seed_bits = np.array([seed], dtype=np.int64).view(np.uint64)
+    key_bits = np.ascontiguousarray(keys, dtype=np.int64).view(np.uint64)
+    return _mix64(key_bits ^ _mix64(seed_bits * _WEYL))
+
+
+def hash_uniform(seed, keys, count):
+    """Uniforms in [0, 1), shape (len(keys), count). Entry (i, j) is a hash of (seed, keys[i], j) alone, so
+    splitting the keys into chunks, or asking for more values per key, never changes a value."""
+    streams = _stream_starts(seed, np.reshape(keys, -1))
+    counters = np.arange(1, count + 1, dtype=np.uint64) * _WEYL
+    uniforms = np.empty((len(streams), count))
+    rows = max(1, _HASH_CHUNK // max(count, 1))
+    for start in range(0, len(streams), rows):
+        bits = _mix64(streams[start:start + rows, None] + counters)
+        # The top 53 bits fill a double's mantissa exactly: values k/2^53, never 1.
+        np.multiply(bits >> np.uint64(11), 2.0 ** -53, out=uniforms[start:start + rows])
+    return uniforms
+
+
+def fibonacci_lattice(count):
+    """(count, 2) points (i/n, frac(i·g)) in [0, 1)², g the golden ratio conjugate."""
+    index = np.arange(count)
+    return np.stack([index / count, np.mod(index * _GOLDEN, 1.0)], axis=-1)
+
+
+def cranley_patterson(points, shifts):
+    """Every shift (..., 2) applied to all points (n, 2) modulo 1 → (..., n, 2).
+
+    Works one coordinate at a time so numpy's inner loops run along the n points, not along pairs."""
+    points, shifts = np.asarray(points, dtype=np.float64), np.asarray(shifts, dtype=np.float64)
+    shifted = np.empty(shifts.shape[:-1] + points.shape)
+    for axis in range(2):
+        coordinate = shifted[..., axis]
+        np.add(points[:, axis], shifts[..., None, axis], out=coordinate)
+        # Both terms lie in [0, 1), so one subtraction wraps exactly (no floor, no rounding).
+        np.subtract(coordinate, 1.0, out=coordinate, where=coordinate >= 1.0)
+    return shifted
+
+
+def square_to_cosine_hemisphere(u):
+    """[0, 1)² (..., 2) → unit directions (..., 3) with density cos θ / π about +Z (polar map: uniform on the
+    disc, lifted to the hemisphere). u[..., 0] sets sin²θ, so its strata are equal-cosine-weight rings."""
+    u = np.asarray(u, dtype=np.float64)
+    radius = np.sqrt(u[..., 0])
+    azimuth = 2.0 * np.pi * u[..., 1]
+    height = np.sqrt(1.0 - u[..., 0])
+    return np.stack([radius * np.cos(azimuth), radius * np.sin(azimuth), height], axis=-1)
+
+
+def square_to_sphere(u):
+    """[0, 1)² (..., 2) → uniformly distributed unit directions (..., 3) (Archimedes' area-preserving map)."""
+    u = np.asarray(u, dtype=np.float64)
+    height = 1.0 - 2.0 * u[..., 0]
+    radius = 2.0 * np.sqrt(u[..., 0] * (1.0 - u[..., 0]))  # = sqrt(1 - height²) without cancellation
+    azimuth = 2.0 * np.pi * u[..., 1]
+    return np.stack([radius * np.cos(azimuth), radius * np.sin(azimuth), height], axis=-1)
+
+
+def orthonormal_basis(normals):
+    """(tangents, bitangents) completing unit normals (N, 3) to right-handed frames (t × b = n).
+
+    Duff et al. 2017, "Building an orthonormal basis, revisited": branchless and accurate for every normal,
+    including n = -Z, where the sign flip keeps the denominator at least 1 in magnitude."""
+    normals = np.asarray(normals, dtype=np.float64)
+    x, y, z = normals[..., 0], normals[..., 1], normals[..., 2]
+    sign = np.copysign(1.0, z)
+    a = -1.0 / (sign + z)
+    b = x * y * a
+    tangents = np.stack([1.0 + sign * x * x * a, sign * b, -sign * x], axis=-1)
+    bitangents = np.stack([b, sign + y * y * a, -y], axis=-1)
+    return tangents, bitangents
+
+
+def to_world(local_dirs, normals):
+    """Local directions (N, ..., 3), z along the normal, into world space with each vertex's frame from
+    orthonormal_basis; normals (N, 3). A leading axis of size 1 shares one set of directions."""
+    local_dirs = np.asarray(local_dirs, dtype=np.float64)
+    normals = np.asarray(normals, dtype=np.float64)
+    tangents, bitangents = orthonormal_basis(normals)
+    frame_shape = (len(normals),) + (1,) * (local_dirs.ndim - 2) + (3,)
+    return (local_dirs[..., 0:1] * tangents.reshape(frame_shape)
+            + local_dirs[..., 1:2] * bitangents.reshape(frame_shape)
+            + local_dirs[..., 2:3] * normals.reshape(frame_shape))
+
+
+def project_samples(values, directions, weights, order):
+    """Σ_i w_i·f(ω_i)·Y_k(ω_i) over the sample axis: values (..., S), directions (..., S, 3), weights
+    broadcastable to values → (..., order²)."""
+    weighted = np.asarray(values, dtype=np.float64) * weights
+    basis = sh.evaluate(order, directions)
+    return (weighted[..., None, :] @ basis)[..., 0, :]
+
+
+def _random_rotation(seed):
+    """A uniformly distributed rotation matrix from three hashed uniforms (Arvo, "Fast random rotation
+    matrices", Graphics Gems III): a random turn about Z, then a reflection that sends Z to a uniform
+    direction; negating makes the product a proper rotation."""
+    turn, azimuth, height = hash_uniform(seed, [0], 3)[0]
+    cos_turn, sin_turn = np.cos(2 * np.pi * turn), np.sin(2 * np.pi * turn)
+    turn_about_z = np.array([[cos_turn, sin_turn, 0.0], [-sin_turn, cos_turn, 0.0], [0.0, 0.0, 1.0]])
+    mirror_normal = np.array([np.cos(2 * np.pi * azimuth) * np.sqrt(height),
+                              np.sin(2 * np.pi * azimuth) * np.sqrt(height),
+                              np.sqrt(1.0 - height)])
+    reflection = np.eye(3) - 2.0 * np.outer(mirror_normal, mirror_normal)
+    return -reflection @ turn_about_z
+
+
+def sphere_directions(count, seed=0):
+    """Spherical Fibonacci set (count, 3) (z strata centred, golden-angle azimuths), rigidly rotated by a
+    uniform random rotation drawn from seed, so that every point is uniform on the sphere. Weights are 4π/count."""
+    lattice = fibonacci_lattice(count)
+    lattice[:, 0] += 0.5 / count
+    return square_to_sphere(lattice) @ _random_rotation(seed).T

@@ -1,0 +1,267 @@
+"""Sampling: hash quality, lattice maps and frames, convergence and honest replicate errors, speed."""
+import time
+
+import numpy as np
+import pytest
+from numpy.polynomial.legendre import leggauss
+from scipy import stats
+from scipy.special import spherical_in, sph_harm_y
+
+from prt_addon.core import sampling
+
+
+def reference_sh(order, directions):
+    """Real SH in the contract's convention, built from scipy's complex sph_harm_y."""
+    directions = np.asarray(directions, dtype=np.float64)
+    theta = np.arccos(np.clip(directions[..., 2], -1.0, 1.0))
+    phi = np.arctan2(directions[..., 1], directions[..., 0])
+    values = np.empty(directions.shape[:-1] + (order * order,))
+    for l in range(order):
+        for m in range(-l, l + 1):
+            y = sph_harm_y(l, abs(m), theta, phi)
+            part = y.real if m >= 0 else y.imag
+            values[..., l * (l + 1) + m] = part if m == 0 else np.sqrt(2.0) * part
+    return values
+
+
+def random_unit_vectors(count, seed):
+    v = np.random.default_rng(seed).standard_normal((count, 3))
+    return v / np.linalg.norm(v, axis=1, keepdims=True)
+
+
+def shifted_cosine_directions(seed, normals, replicates, points):
+    """(N, R, S, 3) world directions: a Cranley-Patterson-rotated lattice per (vertex, replicate)."""
+    keys = np.arange(len(normals) * replicates)
+    shifts = sampling.hash_uniform(seed, keys, 2).reshape(len(normals), replicates, 2)
+    local = sampling.square_to_cosine_hemisphere(
+        sampling.cranley_patterson(sampling.fibonacci_lattice(points), shifts))
+    return sampling.to_world(local, normals)
+
+
+# --- hash ---------------------------------------------------------------------------------------------------
+
+def test_hash_is_deterministic_and_depends_on_seed_key_and_counter():
+    keys = np.arange(1000, dtype=np.int64)
+    first = sampling.hash_uniform(7, keys, 4)
+    np.testing.assert_array_equal(first, sampling.hash_uniform(7, keys.copy(), 4))
+    assert first.shape == (1000, 4) and first.dtype == np.float64
+    assert np.mean(first == sampling.hash_uniform(8, keys, 4)) < 1e-3
+    assert np.mean(first[1:] == first[:-1]) < 1e-3
+    assert np.mean(first[:, 1:] == first[:, :-1]) < 1e-3
+
+
+def test_hash_is_bit_identical_however_keys_are_chunked_or_counted():
+    keys = np.random.default_rng(0).integers(-2 ** 62, 2 ** 62, 5000)
+    whole = sampling.hash_uniform(3, keys, 6)
+    chunks = np.vstack([sampling.hash_uniform(3, part, 6) for part in np.array_split(keys, [1, 17, 2500, 4999])])
+    np.testing.assert_array_equal(whole, chunks)
+    np.testing.assert_array_equal(whole[:, :2], sampling.hash_uniform(3, keys, 2))
+
+
+def test_hash_values_lie_in_the_half_open_unit_interval():
+    values = sampling.hash_uniform(-5, np.array([-1, 0, 1, 2 ** 63 - 1, -2 ** 63]), 10000)
+    assert values.min() >= 0.0 and values.max() < 1.0
+
+
+def test_hash_is_uniform_and_pairs_are_independent():
+    values = sampling.hash_uniform(11, np.arange(50000), 4)
+    assert stats.kstest(values.ravel(), "uniform").pvalue > 0.01
+    bins = 16
+    for first, second in [(values[:, 0], values[:, 1]),      # two counters of one key
+                          (values[:-1, 0], values[1:, 0])]:  # neighbouring keys
+        counts, _, _ = np.histogram2d(first, second, bins=bins, range=[[0, 1], [0, 1]])
+        assert stats.chisquare(counts.ravel()).pvalue > 0.01
+
+
+# --- lattice and maps ---------------------------------------------------------------------------------------
+
+def test_fibonacci_lattice_points():
+    points = sampling.fibonacci_lattice(8)
+    golden = (np.sqrt(5) - 1) / 2
+    np.testing.assert_allclose(points[:, 0], np.arange(8) / 8, rtol=0, atol=0)
+    np.testing.assert_allclose(points[:, 1], (np.arange(8) * golden) % 1, rtol=0, atol=1e-15)
+    big = sampling.fibonacci_lattice(4096)
+    counts, _, _ = np.histogram2d(big[:, 0], big[:, 1], bins=8, range=[[0, 1], [0, 1]])
+    assert counts.min() >= 62 and counts.max() <= 66  # 64 per cell: far more even than random points
+
+
+def test_cranley_patterson_shifts_every_point_modulo_one():
+    points = sampling.fibonacci_lattice(13)
+    shifts = np.random.default_rng(1).random((4, 3, 2))
+    shifted = sampling.cranley_patterson(points, shifts)
+    assert shifted.shape == (4, 3, 13, 2)
+    np.testing.assert_allclose(shifted, np.mod(points + shifts[..., None, :], 1.0), rtol=0, atol=1e-15)
+    assert shifted.min() >= 0.0 and shifted.max() < 1.0
+    edge = sampling.cranley_patterson(np.array([[0.5, 1 - 2 ** -53]]), np.array([0.5 - 2 ** -54, 2 ** -53]))
+    assert edge.min() >= 0.0 and edge.max() < 1.0  # sums that round up to 1 still wrap
+
+
+def test_cosine_hemisphere_points_are_unit_and_upper():
+    u = np.random.default_rng(2).random((1000, 2))
+    u[:4] = [[0, 0], [1 - 2 ** -53, 0.5], [0.5, 1 - 2 ** -53], [2 ** -53, 0.25]]
+    directions = sampling.square_to_cosine_hemisphere(u)
+    np.testing.assert_allclose(np.linalg.norm(directions, axis=-1), 1.0, rtol=1e-15)
+    assert directions[..., 2].min() >= 0.0
+    # density cos θ/π: z² = 1 - u₀ is uniform
+    z = sampling.square_to_cosine_hemisphere(np.random.default_rng(3).random((20000, 2)))[:, 2]
+    assert stats.kstest(z ** 2, "uniform").pvalue > 0.01
+
+
+def test_square_to_sphere_is_unit_and_uniform():
+    directions = sampling.square_to_sphere(np.random.default_rng(4).random((20000, 2)))
+    np.testing.assert_allclose(np.linalg.norm(directions, axis=-1), 1.0, rtol=1e-15)
+    for axis in range(3):  # Archimedes: every coordinate of a uniform direction is uniform on [-1, 1]
+        assert stats.kstest(directions[:, axis], "uniform", args=(-1, 2)).pvalue > 0.01
+
+
+def test_cosine_lattice_estimates_clamped_cosine_transfer_faster_than_monte_carlo():
+    """mean Y_k(ω_i) over cosine-distributed ω_i estimates (1/π)∫ max(n·ω, 0)·Y_k = (Â_l/π)·Y_k(n)."""
+    order, vertices = 4, 100
+    normals = random_unit_vectors(vertices, 5)
+    a_hat = np.array([np.pi, 2 * np.pi / 3, np.pi / 4, 0.0])
+    truth = reference_sh(order, normals) * np.repeat(a_hat / np.pi, 2 * np.arange(order) + 1)
+    sizes = np.array([64, 256, 1024, 4096])
+    errors = []
+    for points in sizes:
+        directions = shifted_cosine_directions(9, normals, 1, points)[:, 0]
+        errors.append(np.sqrt(np.mean((reference_sh(order, directions).mean(1) - truth) ** 2)))
+    slope = np.polyfit(np.log(sizes), np.log(errors), 1)[0]
+    assert slope < -0.8  # Monte Carlo would give -0.5
+    assert errors[-1] < 2e-4  # Monte Carlo's RMS error at 4096 points is about 4e-3
+
+
+# --- frames ---------------------------------------------------------------------------------------------------
+
+def test_orthonormal_basis_is_orthonormal_and_right_handed_everywhere():
+    tiny = 1e-9
+    special = np.array([[0, 0, 1.0], [0, 0, -1.0], [1.0, 0, -0.0], [0, 1.0, -0.0], [1.0, 0, 0], [0, 1.0, 0],
+                        [tiny, 0, -1], [0, tiny, -1], [tiny, -tiny, -1], [-1e-300, 0, -1], [tiny, tiny, 1]])
+    special /= np.linalg.norm(special, axis=1, keepdims=True)
+    near_minus_z = np.array([[np.sin(t) * np.cos(p), np.sin(t) * np.sin(p), -np.cos(t)]
+                             for t in np.geomspace(1e-12, 1e-2, 20) for p in (0.3, 2.0, 4.0)])
+    normals = np.vstack([special, near_minus_z, random_unit_vectors(2000, 6)])
+    tangents, bitangents = sampling.orthonormal_basis(normals)
+    frames = np.stack([tangents, bitangents, normals], axis=1)
+    gram = frames @ frames.transpose(0, 2, 1)
+    np.testing.assert_allclose(gram, np.broadcast_to(np.eye(3), gram.shape), rtol=0, atol=1e-12)
+    np.testing.assert_allclose(np.cross(tangents, bitangents), normals, rtol=0, atol=1e-12)
+
+
+def test_to_world_follows_each_vertex_frame():
+    normals = random_unit_vectors(5, 7)
+    tangents, bitangents = sampling.orthonormal_basis(normals)
+    axes = np.array([[1.0, 0, 0], [0, 1.0, 0], [0, 0, 1.0]])
+    world = sampling.to_world(np.broadcast_to(axes, (5, 2, 3, 3)), normals)
+    assert world.shape == (5, 2, 3, 3)
+    for vertex in range(5):
+        np.testing.assert_allclose(world[vertex, 1], [tangents[vertex], bitangents[vertex], normals[vertex]],
+                                   rtol=0, atol=1e-15)
+    shared = sampling.to_world(axes[None], normals)  # one set of directions for every vertex
+    np.testing.assert_allclose(shared, world[:, 0], rtol=0, atol=1e-15)
+
+
+# --- estimators -----------------------------------------------------------------------------------------------
+
+def cap_transfer(order, normals, axes, cos_half_angles):
+    """(1/π)∫_cap (n·ω)·Y_k(ω) dω for caps that lie inside each normal's hemisphere: the integrand is a
+    polynomial of degree ≤ order in ω, so Gauss-Legendre in cos (about the cap axis) × equal steps in
+    azimuth is exact."""
+    nodes, weights = leggauss(order + 2)
+    azimuths = 2 * np.pi * np.arange(2 * order + 2) / (2 * order + 2)
+    c = cos_half_angles[:, None]
+    heights = c + (nodes + 1) / 2 * (1 - c)                       # (N, G)
+    height_weights = weights * (1 - c) / 2
+    across_1, across_2 = sampling.orthonormal_basis(axes)
+    ring = (np.cos(azimuths)[:, None] * across_1[:, None, :]
+            + np.sin(azimuths)[:, None] * across_2[:, None, :])   # (N, A, 3)
+    directions = (np.sqrt(1 - heights ** 2)[:, :, None, None] * ring[:, None]
+                  + heights[:, :, None, None] * axes[:, None, None, :])
+    integrand = np.einsum("ngac,nc->nga", directions, normals)[..., None] * reference_sh(order, directions)
+    return np.einsum("ngak,ng->nk", integrand, height_weights) * (2 * np.pi / len(azimuths)) / np.pi
+
+
+def test_replicate_standard_errors_are_honest_for_a_visibility_integrand():
+    """400 vertices, R = 8 replicates of 64 shifted lattice points each, estimating the transfer
+    (1/π)∫ V·max(n·ω, 0)·Y_k with V = [ω·a > c] a cap of sky seen through an opening. With honest errors the
+    z-scores (error / replicate standard error) follow Student's t with 7 degrees of freedom: RMS sqrt(7/5) ≈ 1.18;
+    error bars half the true size would give 2.4, twice the true size 0.59. (t's heavy tails make the RMS of
+    a single coefficient over 400 vertices too noisy to bound; the 8 coefficients are pooled.)
+
+    Y_0 is left out of the per-coefficient check: V·Y_0 is a pure count, and a lattice often puts the same
+    number of points in the cap for all 8 shifts, a zero spread with a nonzero error. The vector norm the
+    bake reports includes it."""
+    order, vertices, replicates, points = 3, 400, 8, 64
+    rng = np.random.default_rng(8)
+    normals = random_unit_vectors(vertices, 9)
+    half_angles = rng.uniform(0.3, 0.8, vertices)
+    tilts = rng.uniform(0, 1, vertices) * (np.pi / 2 - half_angles)  # keeps each cap above the horizon
+    swing = rng.uniform(0, 2 * np.pi, vertices)[:, None]
+    tangents, bitangents = sampling.orthonormal_basis(normals)
+    axes = (np.cos(tilts)[:, None] * normals
+            + np.sin(tilts)[:, None] * (np.cos(swing) * tangents + np.sin(swing) * bitangents))
+    truth = cap_transfer(order, normals, axes, np.cos(half_angles))
+
+    directions = shifted_cosine_directions(21, normals, replicates, points)
+    visible = np.einsum("nrsc,nc->nrs", directions, axes) > np.cos(half_angles)[:, None, None]
+    per_replicate = (visible[..., None] * reference_sh(order, directions)).mean(2)   # (N, R, K)
+    estimate = per_replicate.mean(1)
+    standard_error = per_replicate.std(1, ddof=1) / np.sqrt(replicates)
+
+    z = (estimate - truth)[:, 1:] / standard_error[:, 1:]
+    assert 0.7 < np.sqrt(np.mean(z ** 2)) < 1.4
+    vector_z = np.linalg.norm(estimate - truth, axis=1) / np.linalg.norm(standard_error, axis=1)
+    assert 0.7 < np.sqrt(np.mean(vector_z ** 2)) < 1.4
+
+
+def test_project_samples_of_fibonacci_sphere_converges_to_the_exact_projection():
+    """exp(κ·a·ω) = Σ_lm 4π·i_l(κ)·Y_lm(a)·Y_lm(ω) (i_l the modified spherical Bessel function)."""
+    order, kappa = 6, 2.0
+    axis = np.array([0.3, -0.5, 0.8]) / np.linalg.norm([0.3, -0.5, 0.8])
+    bands = np.repeat(np.arange(order), 2 * np.arange(order) + 1)
+    truth = 4 * np.pi * spherical_in(bands, kappa) * reference_sh(order, axis)
+    errors = []
+    for count in [100, 1000, 10000]:
+        directions = sampling.sphere_directions(count, seed=count)
+        projection = sampling.project_samples(np.exp(kappa * directions @ axis), directions, 4 * np.pi / count, order)
+        errors.append(np.abs(projection - truth).max())
+    assert errors[0] / errors[1] > 10 and errors[1] / errors[2] > 10
+    assert errors[2] < 5e-5 * np.abs(truth).max()
+
+
+def test_project_samples_broadcasts_leading_axes():
+    directions = random_unit_vectors(12, 10).reshape(2, 6, 3)
+    values = np.arange(12.0).reshape(2, 6)
+    result = sampling.project_samples(values, directions, 0.5, 3)
+    truth = 0.5 * np.einsum("vs,vsk->vk", values, reference_sh(3, directions))
+    np.testing.assert_allclose(result, truth, rtol=0, atol=1e-13)
+
+
+def test_sphere_directions_are_rigid_uniform_rotations_of_one_set():
+    first, second = sampling.sphere_directions(50, seed=1), sampling.sphere_directions(50, seed=2)
+    np.testing.assert_allclose(np.linalg.norm(first, axis=1), 1.0, rtol=1e-14)
+    np.testing.assert_allclose(first @ first.T, second @ second.T, rtol=0, atol=1e-13)  # same shape...
+    assert np.abs(first - second).max() > 0.1                                          # ...moved
+    np.testing.assert_array_equal(first, sampling.sphere_directions(50, seed=1))
+    # over seeds, any one point is uniform on the sphere
+    point = np.array([sampling.sphere_directions(10, seed)[3] for seed in range(3000)])
+    for axis in range(3):
+        assert stats.kstest(point[:, axis], "uniform", args=(-1, 2)).pvalue > 0.01
+
+
+# --- speed ----------------------------------------------------------------------------------------------------
+
+def best_time(function, repeats=3):
+    function()  # first touch of fresh memory is an OS cost, not the algorithm's
+    times = []
+    for _ in range(repeats):
+        start = time.perf_counter()
+        function()
+        times.append(time.perf_counter() - start)
+    return min(times)
+
+
+def test_hash_and_lattice_for_100k_vertices_by_256_samples_are_fast():
+    keys = np.arange(100_000)
+    lattice = sampling.fibonacci_lattice(256)
+    assert best_time(lambda: sampling.hash_uniform(1, keys, 256)) < 0.5
+    assert best_time(lambda: sampling.cranley_patterson(lattice, sampling.hash_uniform(1, keys, 2))) < 0.75
