@@ -1,0 +1,288 @@
+"""A bake job: chunks run in this process or in worker processes, with progress, time left and cancel.
+
+Both ways run `bake.bake_chunk` on the same fixed chunks, so the results are bit-identical whatever the
+number of workers. `step()` returns after a bounded amount of work so a modal operator stays responsive.
+"""
+
+from dataclasses import dataclass, field
+import json
+import os
+import queue
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+
+import numpy as np
+
+from . import bake
+from .progress import Progress
+
+
+@dataclass
+class ReceiverResult:
+    transfer: np.ndarray    # (V, n²) float64
+    std_error: np.ndarray   # (V,) norm of the standard error of the coefficients
+    rel_error: np.ndarray   # (V,) std_error ÷ norm of the unshadowed transfer (0 without a surface)
+    rays: np.ndarray        # (V,) int64
+    skipped: np.ndarray     # (V,) bool: provably unoccluded, exact without rays
+
+
+@dataclass
+class Summary:
+    objects: int
+    vertices: int
+    order: int
+    mode: str
+    samples: int
+    rays: int
+    skipped_vertices: int
+    time_s: float
+    rays_per_s: float
+    est_rms_rel_error: float
+    est_max_rel_error: float
+    workers: int = 1
+    target_error: float = 0.0
+    per_object: dict = field(default_factory=dict)
+
+    def line(self) -> str:
+        return (f"PRT bake: {self.objects} objects, {self.vertices} vertices, order {self.order} {self.mode}: "
+                f"{self.time_s:.2f} s, {self.rays} rays, {self.rays_per_s / 1e3:.0f} k rays/s, "
+                f"{self.skipped_vertices} vertices exact without rays, "
+                f"est. RMS rel. error {self.est_rms_rel_error:.4f}, max {self.est_max_rel_error:.4f}")
+
+
+class Cancelled(Exception):
+    pass
+
+
+class TransferJob:
+    """Bakes every receiver. Call step() until it returns True, or run() to do it all at once."""
+
+    def __init__(self, receivers, occluders, settings: bake.BakeSettings, workers: int = 1,
+                 worker_command=None):
+        self.receivers = receivers
+        self.occluders = occluders
+        self.settings = settings
+        self.workers = max(1, int(workers))
+        self.worker_command = worker_command
+        self.chunks = bake.chunk_ranges([len(r.positions) for r in receivers])
+        self.total_vertices = sum(len(r.positions) for r in receivers)
+        self.done_vertices = 0
+        self.rays = 0
+        self.progress = Progress("PRT bake")
+        order = settings.order
+        self._transfer = [np.zeros((len(r.positions), order * order)) for r in receivers]
+        self._std_error = [np.zeros(len(r.positions)) for r in receivers]
+        self._rays = [np.zeros(len(r.positions), dtype=np.int64) for r in receivers]
+        self._skipped = [np.zeros(len(r.positions), dtype=bool) for r in receivers]
+        self._runner = None
+        self.finished = False
+
+    # -- running --------------------------------------------------------------------------------------
+    def step(self, budget_s: float = 0.1) -> bool:
+        """Works for about `budget_s` seconds; True once everything is baked."""
+        if self.finished:
+            return True
+        if self._runner is None:
+            use_workers = self.workers > 1 and self.settings.mode == "shadowed" and len(self.chunks) > 1
+            self._runner = self._run_workers() if use_workers else self._run_here()
+        deadline = time.perf_counter() + budget_s
+        while time.perf_counter() < deadline:
+            if next(self._runner, StopIteration) is StopIteration:
+                self.finished = True
+                break
+        self.progress.fraction = self.done_vertices / max(1, self.total_vertices)
+        return self.finished
+
+    def run(self, report=None, budget_s: float = 0.5):
+        """Runs to the end; `report(progress)` is called after each step (background logs)."""
+        while not self.step(budget_s):
+            if report:
+                report(self.progress)
+        if report:
+            report(self.progress)
+        return self.results()
+
+    def cancel(self):
+        if self._runner is not None:
+            self._runner.close()
+        self.finished = False
+
+    def _store(self, chunk_index, result: bake.ChunkResult):
+        receiver_index, start, stop = self.chunks[chunk_index]
+        self._transfer[receiver_index][start:stop] = result.transfer
+        self._std_error[receiver_index][start:stop] = result.std_error
+        self._rays[receiver_index][start:stop] = result.rays
+        self._skipped[receiver_index][start:stop] = result.skipped
+        self.done_vertices += stop - start
+
+    def _run_here(self):
+        caster = bake.RayCaster(self.occluders) if self.settings.mode == "shadowed" else None
+        yield
+        for chunk_index, (receiver_index, start, stop) in enumerate(self.chunks):
+            work = bake.bake_chunk(caster, self.receivers[receiver_index], start, stop, self.settings)
+            while True:
+                try:
+                    self.rays += next(work)
+                    yield
+                except StopIteration as finished:
+                    self._store(chunk_index, finished.value)
+                    break
+            yield
+
+    def _run_workers(self):
+        with tempfile.TemporaryDirectory(prefix="prt_bake_") as folder:
+            job_file = os.path.join(folder, "job.npz")
+            save_job(job_file, self.receivers, self.occluders, self.settings)
+            processes, lines = [], queue.Queue()
+            try:
+                for worker in range(self.workers):
+                    mine = list(range(worker, len(self.chunks), self.workers))
+                    out_file = os.path.join(folder, f"result_{worker}.npz")
+                    command = worker_process_command(self.worker_command, job_file, out_file, mine)
+                    process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                                               text=True, env=_worker_environment())
+                    threading.Thread(target=_read_lines, args=(process.stdout, lines, worker),
+                                     daemon=True).start()
+                    processes.append((process, out_file, mine))
+                running = len(processes)
+                while running:
+                    try:
+                        worker, line = lines.get(timeout=0.05)
+                    except queue.Empty:
+                        yield
+                        continue
+                    if line is None:
+                        running -= 1
+                    elif line.startswith("PRT-PROGRESS "):
+                        vertices, rays = map(int, line.split()[1:3])
+                        self.done_vertices += vertices
+                        self.rays += rays
+                    yield
+                self.done_vertices = 0
+                for process, out_file, mine in processes:
+                    if process.wait() != 0:
+                        message = process.stderr.read().strip().splitlines()
+                        raise RuntimeError("bake worker failed: " + (message[-1] if message else "no message"))
+                    for chunk_index, result in zip(mine, load_results(out_file)):
+                        self._store(chunk_index, result)
+            finally:
+                for process, _, _ in processes:
+                    if process.poll() is None:
+                        process.kill()
+                        process.wait()
+
+    # -- results --------------------------------------------------------------------------------------
+    def results(self) -> list[ReceiverResult]:
+        out = []
+        for index, receiver in enumerate(self.receivers):
+            reference = np.linalg.norm(bake.unshadowed_transfer(self.settings.order, receiver.normals), axis=1)
+            rel_error = np.divide(self._std_error[index], reference, out=np.zeros_like(reference),
+                                  where=reference > 0)
+            out.append(ReceiverResult(self._transfer[index], self._std_error[index], rel_error,
+                                      self._rays[index], self._skipped[index]))
+        return out
+
+    def summary(self, results: list[ReceiverResult]) -> Summary:
+        elapsed = self.progress.elapsed
+        rel = np.concatenate([r.rel_error for r in results]) if results else np.zeros(0)
+        rays = int(sum(int(r.rays.sum()) for r in results))
+        per_object = {
+            receiver.name: {
+                "vertices": len(receiver.positions),
+                "rays": int(result.rays.sum()),
+                "skipped_vertices": int(result.skipped.sum()),
+                "est_rms_rel_error": _rms(result.rel_error),
+                "est_max_rel_error": float(result.rel_error.max(initial=0.0)),
+            }
+            for receiver, result in zip(self.receivers, results)
+        }
+        return Summary(
+            objects=len(results), vertices=int(len(rel)), order=self.settings.order, mode=self.settings.mode,
+            samples=self.settings.samples, rays=rays,
+            skipped_vertices=int(sum(int(r.skipped.sum()) for r in results)),
+            time_s=elapsed, rays_per_s=rays / elapsed if elapsed > 0 else 0.0,
+            est_rms_rel_error=_rms(rel), est_max_rel_error=float(rel.max(initial=0.0)),
+            workers=self.workers, target_error=self.settings.target_error, per_object=per_object)
+
+
+def _rms(values: np.ndarray) -> float:
+    return float(np.sqrt(np.mean(np.square(values)))) if len(values) else 0.0
+
+
+def _read_lines(stream, lines: queue.Queue, worker: int):
+    for line in stream:
+        lines.put((worker, line.strip()))
+    lines.put((worker, None))
+
+
+def _worker_environment():
+    # One BLAS thread per worker: the workers are the parallelism.
+    return dict(os.environ, OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1", MKL_NUM_THREADS="1")
+
+
+# -- the worker side ----------------------------------------------------------------------------------
+def worker_process_command(python_prefix, job_file, out_file, chunk_indices):
+    """`python_prefix` runs a Python snippet with mathutils importable: [python, '-c'] with the bpy module,
+    [blender, '--background', '--factory-startup', '--python-expr'] in a real Blender."""
+    package_parent = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+    package = __name__.rsplit(".", 2)[0].rsplit(".", 1)[-1]
+    snippet = (
+        "import sys\n"
+        "try:\n    import bpy\nexcept ImportError:\n    pass\n"
+        f"sys.path.insert(0, {package_parent!r})\n"
+        f"from {package}.core import job\n"
+        f"job.worker_main({job_file!r}, {out_file!r}, {list(chunk_indices)!r})\n"
+    )
+    return [*python_prefix, snippet]
+
+
+def save_job(path, receivers, occluders, settings: bake.BakeSettings):
+    arrays = {"occluder_vertices": occluders.vertices, "occluder_triangles": occluders.triangles,
+              "occluder_hull": occluders.hull}
+    for index, receiver in enumerate(receivers):
+        arrays[f"positions_{index}"] = receiver.positions
+        arrays[f"normals_{index}"] = receiver.normals
+    meta = {"settings": settings.__dict__, "receivers": [[r.name, r.key] for r in receivers]}
+    np.savez(path, meta=np.array(json.dumps(meta)), **arrays)
+
+
+def load_job(path):
+    with np.load(path) as data:
+        meta = json.loads(str(data["meta"]))
+        occluders = bake.Occluders(data["occluder_vertices"], data["occluder_triangles"], data["occluder_hull"])
+        receivers = [bake.Receiver(name, data[f"positions_{i}"], data[f"normals_{i}"], key)
+                     for i, (name, key) in enumerate(meta["receivers"])]
+    return receivers, occluders, bake.BakeSettings(**meta["settings"])
+
+
+def load_results(path) -> list[bake.ChunkResult]:
+    with np.load(path) as data:
+        return [bake.ChunkResult(data[f"transfer_{i}"], data[f"std_error_{i}"], data[f"rays_{i}"],
+                                 data[f"skipped_{i}"])
+                for i in range(int(data["count"]))]
+
+
+def worker_main(job_file, out_file, chunk_indices):
+    """Runs in a worker process: bakes its chunks, prints progress lines, saves the results."""
+    receivers, occluders, settings = load_job(job_file)
+    chunks = bake.chunk_ranges([len(r.positions) for r in receivers])
+    caster = bake.RayCaster(occluders)
+    arrays = {"count": np.array(len(chunk_indices))}
+    for slot, chunk_index in enumerate(chunk_indices):
+        receiver_index, start, stop = chunks[chunk_index]
+        work = bake.bake_chunk(caster, receivers[receiver_index], start, stop, settings)
+        rays = 0
+        while True:
+            try:
+                rays += next(work)
+            except StopIteration as finished:
+                result = finished.value
+                break
+        for name in ("transfer", "std_error", "rays", "skipped"):
+            arrays[f"{name}_{slot}"] = getattr(result, name)
+        print(f"PRT-PROGRESS {stop - start} {rays}", flush=True)
+    np.savez(out_file, **arrays)
+    sys.stdout.flush()

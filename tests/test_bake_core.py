@@ -1,0 +1,132 @@
+"""The shadowed estimator against closed forms, its error estimate against its actual error."""
+
+import sys
+
+import bpy  # noqa: F401  (mathutils comes with bpy)
+import numpy as np
+import pytest
+from numpy.polynomial import legendre
+
+from prt_addon.core import bake, job
+
+
+def disc(radius, height, segments=720):
+    """A horizontal disc (polygon fan) centred above the origin, facing down at a receiver below."""
+    angles = np.linspace(0.0, 2 * np.pi, segments, endpoint=False)
+    ring = np.stack([radius * np.cos(angles), radius * np.sin(angles), np.full(segments, height)], 1)
+    vertices = np.vstack([[0.0, 0.0, height], ring])
+    triangles = np.array([[0, 1 + i, 1 + (i + 1) % segments] for i in range(segments)])
+    return bake.Occluders(vertices, triangles, vertices.copy())
+
+
+def capped_transfer_zonal(order, cap_half_angle):
+    """T_l0 for a +Z normal under a centred disc: (1/π)∫ V cos Y_l0 = 2·sqrt((2l+1)/4π)·∫_0^{cos α} t P_l(t) dt,
+    by Gauss-Legendre quadrature of Legendre polynomials (numpy's), independent of the code under test."""
+    nodes, weights = legendre.leggauss(64)
+    top = np.cos(cap_half_angle)
+    t = 0.5 * top * (nodes + 1.0)
+    values = []
+    for l in range(order):
+        p_l = legendre.legval(t, [0] * l + [1])
+        values.append(2 * np.sqrt((2 * l + 1) / (4 * np.pi)) * 0.5 * top * np.sum(weights * t * p_l))
+    return np.array(values)
+
+
+def receiver_copies(count, position=(0.0, 0.0, 0.0), normal=(0.0, 0.0, 1.0), name="probe"):
+    """`count` vertices at one point: independent replicates of one integral (each has its own key)."""
+    return bake.Receiver(name, np.tile(position, (count, 1)).astype(float),
+                         np.tile(normal, (count, 1)).astype(float), bake.Receiver.key_for(name))
+
+
+def run(receivers, occluders, **settings):
+    the_job = job.TransferJob(receivers, occluders, bake.BakeSettings(**settings))
+    return the_job.run(), the_job
+
+
+ZONAL = [bake.sh.index(l, 0) for l in range(4)]
+
+
+def test_unshadowed_is_the_closed_form_without_rays():
+    normals = np.random.default_rng(1).normal(size=(50, 3))
+    normals /= np.linalg.norm(normals, axis=1, keepdims=True)
+    receiver = bake.Receiver("r", np.zeros((50, 3)), normals, 7)
+    (result,), _ = run([receiver], None, mode="unshadowed", order=3)
+    assert result.rays.sum() == 0
+    c0, c1 = np.sqrt(1 / (4 * np.pi)), np.sqrt(3 / (4 * np.pi))
+    x, y, z = normals.T
+    np.testing.assert_allclose(result.transfer[:, 0], c0, atol=1e-14)  # Â_0/π · Y_00
+    np.testing.assert_allclose(result.transfer[:, 1:4], (2 / 3) * c1 * np.stack([-y, z, -x], 1), atol=1e-14)
+    np.testing.assert_allclose(result.transfer[:, 6], (1 / 4) * 0.315391565252520 * (3 * z * z - 1), atol=1e-12)
+
+
+def test_shadowed_matches_the_closed_form_under_a_disc():
+    radius, height = 1.0, 1.5
+    (result,), _ = run([receiver_copies(256)], disc(radius, height), order=4, samples=64)
+    expected = capped_transfer_zonal(4, np.arctan(radius / height))
+    mean = result.transfer[:, ZONAL].mean(0)
+    spread = result.transfer[:, ZONAL].std(0) / np.sqrt(256)
+    assert np.all(np.abs(mean - expected) <= 4 * spread + 1e-4), (mean, expected, spread)
+    off_axis = [k for k in range(16) if k not in ZONAL]
+    assert np.abs(result.transfer[:, off_axis].mean(0)).max() < 5 * result.std_error.mean() / 16 ** 0.5 + 1e-3
+
+
+def test_estimated_error_is_honest():
+    """Actual error ÷ estimated standard error over 400 independent vertices has an RMS near 1."""
+    radius, height = 1.0, 1.0
+    (result,), _ = run([receiver_copies(400)], disc(radius, height), order=3, samples=64)
+    expected = np.zeros(9)
+    expected[[0, 2, 6]] = capped_transfer_zonal(3, np.arctan(radius / height))
+    actual = np.linalg.norm(result.transfer - expected, axis=1)
+    z = actual / result.std_error
+    # For a 9-vector, |error| / sqrt(Σ var) has RMS 1 when the estimate is honest.
+    assert 0.7 <= np.sqrt(np.mean(z ** 2)) <= 1.4
+
+
+def test_provably_unoccluded_vertices_cast_no_rays_and_are_exact():
+    above = receiver_copies(10, position=(0.0, 0.0, 2.0), name="above")
+    below = receiver_copies(10, position=(0.0, 0.0, 0.0), name="below")
+    (top, bottom), the_job = run([above, below], disc(1.0, 1.5), order=4, samples=64)
+    assert top.skipped.all() and top.rays.sum() == 0 and not bottom.skipped.any()
+    np.testing.assert_array_equal(top.transfer, bake.unshadowed_transfer(4, above.normals))
+    summary = the_job.summary([top, bottom])
+    assert summary.skipped_vertices == 10 and summary.rays == 10 * 64
+
+
+@pytest.mark.parametrize("scale, shift", [(1e-4, 0.0), (1e4, 0.0), (1.0, 1e5)])
+def test_scaled_and_moved_scenes_bake_the_same(scale, shift):
+    occluders = disc(1.0, 1.0)
+    probe = bake.Receiver("p", np.array([[0.3, -0.2, 0.0], [0.9, 0.9, 0.0]]), np.array([[0, 0, 1.0]] * 2), 3)
+    (reference,), _ = run([probe], occluders, order=4, samples=256)
+    moved_occluders = bake.Occluders(occluders.vertices * scale + shift, occluders.triangles,
+                                     occluders.hull * scale + shift)
+    moved = bake.Receiver("p", probe.positions * scale + shift, probe.normals, 3)
+    (result,), _ = run([moved], moved_occluders, order=4, samples=256)
+    np.testing.assert_allclose(result.transfer, reference.transfer, atol=1e-12)
+
+
+def test_target_error_is_met_per_vertex():
+    receiver = bake.Receiver("t", np.array([[0.0, 0, 0], [0.8, 0, 0], [1.6, 0, 0], [4.0, 0, 0]]),
+                             np.array([[0, 0, 1.0]] * 4), 11)
+    (result,), _ = run([receiver], disc(1.0, 1.0), order=4, samples=64, target_error=0.01, max_samples=65536)
+    assert np.all(result.rel_error <= 0.01)
+    assert result.rays.max() > result.rays.min()  # rays went where the error was
+
+
+def test_workers_give_bit_identical_results():
+    rng = np.random.default_rng(5)
+    positions = np.column_stack([rng.uniform(-1.5, 1.5, (300, 2)), np.zeros(300)])
+    receiver = bake.Receiver("w", positions, np.tile([0.0, 0.0, 1.0], (300, 1)), 21)
+    settings = bake.BakeSettings(order=4, samples=64, target_error=0.05, max_samples=1024)
+    one = job.TransferJob([receiver], disc(1.0, 1.0), settings, workers=1).run()[0]
+    two = job.TransferJob([receiver], disc(1.0, 1.0), settings, workers=2,
+                          worker_command=[sys.executable, "-c"]).run()[0]
+    np.testing.assert_array_equal(one.transfer, two.transfer)
+    np.testing.assert_array_equal(one.std_error, two.std_error)
+    np.testing.assert_array_equal(one.rays, two.rays)
+
+
+@pytest.mark.parametrize("field, value", [("order", 0), ("order", 11), ("samples", 4), ("mode", "glossy"),
+                                          ("target_error", float("nan")), ("replicates", 1)])
+def test_settings_out_of_range_are_named(field, value):
+    problems = bake.BakeSettings(**{field: value}).problems()
+    assert len(problems) == 1 and field.split("_")[0] in problems[0]
