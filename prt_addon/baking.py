@@ -1,0 +1,87 @@
+"""One bake of a Blender scene, shared by the operator (modal or not) and the command line.
+
+Nothing is written until every receiver is baked: a cancelled or failed bake leaves the previous data as it was.
+"""
+
+import sys
+
+import bpy
+
+from . import mesh_data
+from .core import bake, job
+
+
+def worker_python_prefix() -> list[str]:
+    """How to start a worker: Blender's own binary in a real Blender, the module's Python with bpy."""
+    if bpy.app.binary_path:
+        return [bpy.app.binary_path, "--background", "--factory-startup", "--python-expr"]
+    return [sys.executable, "-c"]
+
+
+class SceneBake:
+    """Gathers receivers and occluders, runs a TransferJob, then stores everything at once."""
+
+    def __init__(self, context, settings: bake.BakeSettings, object_names=None, workers: int = 1):
+        problems = settings.problems()
+        if problems:
+            raise mesh_data.InputError("; ".join(problems))
+        self.settings = settings
+        self.problems: list[str] = []  # one sentence per object that will not be baked
+        depsgraph = context.evaluated_depsgraph_get()
+        candidates = mesh_data.receivers_from_selection(context, object_names)
+        self.objects, receivers, meshes = [], [], {}
+        for ob in candidates:
+            try:
+                if ob.type == "MESH" and ob.data.name in meshes:
+                    raise mesh_data.InputError(
+                        f"{ob.name!r} shares its mesh with {meshes[ob.data.name]!r}, and the bake depends on "
+                        f"where each object is; make it single-user (Object > Relations) to bake both")
+                receivers.append(mesh_data.receiver_from_object(ob, depsgraph))
+                meshes[ob.data.name] = ob.name
+                self.objects.append(ob)
+            except mesh_data.InputError as problem:
+                self.problems.append(str(problem))
+        if not receivers:
+            raise mesh_data.InputError("nothing to bake: " + ("; ".join(self.problems) or "no mesh objects"))
+        occluders = (mesh_data.occluders_from_depsgraph(depsgraph, self.objects)
+                     if settings.mode == "shadowed" else None)
+        self.receivers = receivers
+        self.job = job.TransferJob(receivers, occluders, settings, workers, worker_python_prefix())
+        self.summary = None
+
+    @property
+    def progress(self):
+        return self.job.progress
+
+    def step(self, budget_s: float = 0.1) -> bool:
+        return self.job.step(budget_s)
+
+    def run(self, log=print):
+        """Synchronous bake with a log line every 5 % (background mode, command line)."""
+        from .core.progress import LogThrottle
+        throttle = LogThrottle(0.05)
+        while not self.step(0.5):
+            if throttle.due(self.progress.fraction):
+                log(self.progress.line())
+        return self.store()
+
+    def cancel(self):
+        self.job.cancel()
+
+    def store(self) -> job.Summary:
+        """Writes every receiver's transfer (replacing older bakes) and returns the summary."""
+        results = self.job.results()
+        self.summary = self.job.summary(results)
+        for ob, result in zip(self.objects, results):
+            mesh_data.write_transfer(ob, result, {"time_s": self.summary.time_s}, self.settings)
+        return self.summary
+
+    def report_dict(self) -> dict:
+        s = self.summary
+        return {
+            "objects": [ob.name for ob in self.objects], "vertices": s.vertices, "order": s.order,
+            "mode": s.mode, "samples": s.samples, "target_error": s.target_error, "workers": s.workers,
+            "rays": s.rays, "skipped_vertices": s.skipped_vertices, "time_s": s.time_s,
+            "rays_per_s": s.rays_per_s, "est_rms_rel_error": s.est_rms_rel_error,
+            "est_max_rel_error": s.est_max_rel_error, "per_object": s.per_object, "problems": self.problems,
+        }

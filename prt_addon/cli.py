@@ -1,0 +1,153 @@
+"""The command line: one parser and one implementation for `python -m prt_addon ...` (bpy module) and
+`blender --background [file.blend] --command prt ...` (a real Blender). Exit 0 on success, 1 with a
+one-line reason on failure."""
+
+import argparse
+import json
+import os
+import sys
+
+import bpy
+
+COMMAND_ID = "prt"
+_cli_handle = None
+
+
+class CliError(Exception):
+    pass
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message):  # argparse would exit with 2; we promise 1 and one line
+        raise CliError(f"{self.prog}: {message}")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = _Parser(prog="prt", description="Precomputed radiance transfer for Blender.")
+    commands = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
+    commands.required = True
+
+    bake = commands.add_parser("bake", help="bake SH transfer into a .blend file's meshes")
+    bake.add_argument("file", nargs="?", help=".blend file to open (in Blender: defaults to the open file)")
+    bake.add_argument("--objects", help="comma-separated receiver names (default: every visible mesh)")
+    bake.add_argument("--mode", choices=("unshadowed", "shadowed"), default="shadowed")
+    bake.add_argument("--order", type=int, default=4, help="SH bands, 1-10 (default 4: 16 coefficients)")
+    bake.add_argument("--samples", type=int, default=256, help="rays per vertex (first round with a target)")
+    bake.add_argument("--target-error", type=float, default=0.0,
+                      help="sample each vertex until its estimated relative error is below this")
+    bake.add_argument("--max-samples", type=int, default=16384, help="ray budget per vertex with a target")
+    bake.add_argument("--workers", type=int, default=1, help="worker processes casting rays")
+    bake.add_argument("--seed", type=int, default=0)
+    bake.add_argument("--output", help="where to save the baked file (default: over the opened file)")
+    bake.add_argument("--report", help="write the bake report as JSON here")
+
+    export = commands.add_parser("export", help="write one object's bake to a .npz for use outside Blender")
+    export.add_argument("file", help=".blend file")
+    export.add_argument("--object", required=True, help="object name")
+    export.add_argument("--npz", required=True, help="output .npz path")
+
+    demo = commands.add_parser("demo", help="build the sample scene, bake, relight, render a PNG and a report")
+    demo.add_argument("--output", default="demo_output", help="folder for the PNG, report and .blend")
+    demo.add_argument("--workers", type=int, default=2)
+    demo.add_argument("--samples", type=int, default=256)
+    return parser
+
+
+def main(argv, in_blender: bool = False) -> int:
+    from . import mesh_data
+    try:
+        args = build_parser().parse_args(argv)
+        return COMMANDS[args.command](args, in_blender)
+    except SystemExit as leaving:  # --help
+        return int(leaving.code or 0)
+    except (CliError, mesh_data.InputError, mesh_data.StaleBake) as failure:
+        print(f"prt: error: {failure}", file=sys.stderr)
+        return 1
+    except Exception as failure:  # any other failure still gets its one line
+        print(f"prt: error: {type(failure).__name__}: {failure}", file=sys.stderr)
+        return 1
+
+
+def _open(path, required: bool):
+    if path:
+        if not os.path.isfile(path):
+            raise CliError(f"no such file: {path}")
+        bpy.ops.wm.open_mainfile(filepath=os.path.abspath(path), load_ui=False)
+    elif required or not bpy.data.filepath and not bpy.data.objects:
+        raise CliError("give a .blend file to open")
+
+
+def _write_json(path, data):
+    folder = os.path.dirname(os.path.abspath(path))
+    os.makedirs(folder, exist_ok=True)
+    with open(path, "w", encoding="utf-8") as handle:
+        json.dump(data, handle, indent=2)
+
+
+def run_bake(args, in_blender: bool) -> int:
+    from .baking import SceneBake
+    from .core.bake import BakeSettings
+    _open(args.file, required=not in_blender)
+    settings = BakeSettings(order=args.order, mode=args.mode, samples=args.samples,
+                            target_error=args.target_error, max_samples=args.max_samples, seed=args.seed)
+    names = [n.strip() for n in args.objects.split(",")] if args.objects else None
+    scene_bake = SceneBake(bpy.context, settings, names, workers=args.workers)
+    for problem in scene_bake.problems:
+        print(f"prt: warning: {problem}", file=sys.stderr)
+    summary = scene_bake.run(log=lambda line: print(line, flush=True))
+    print(summary.line(), flush=True)
+    output = args.output or bpy.data.filepath
+    if not output:
+        raise CliError("the scene has no file; give --output")
+    bpy.ops.wm.save_as_mainfile(filepath=os.path.abspath(output))
+    if args.report:
+        _write_json(args.report, scene_bake.report_dict())
+    return 0
+
+
+def run_export(args, in_blender: bool) -> int:
+    import numpy as np
+    from . import mesh_data
+    _open(args.file, required=True)
+    ob = bpy.data.objects.get(args.object)
+    if ob is None or ob.type != "MESH":
+        raise CliError(f"no mesh object named {args.object!r} in {args.file}")
+    transfer, meta = mesh_data.read_transfer(ob.data)
+    matrix = np.array(ob.matrix_world, dtype=np.float64)
+    local = np.empty(len(ob.data.vertices) * 3)
+    ob.data.vertices.foreach_get("co", local)
+    local = local.reshape(-1, 3)
+    normals = np.empty(len(ob.data.vertices) * 3)
+    ob.data.vertex_normals.foreach_get("vector", normals)
+    world_normals = normals.reshape(-1, 3) @ np.linalg.inv(matrix[:3, :3])
+    world_normals /= np.maximum(np.linalg.norm(world_normals, axis=1, keepdims=True), 1e-30)
+    np.savez(args.npz,
+             positions=local @ matrix[:3, :3].T + matrix[:3, 3], normals=world_normals,
+             local_positions=local, matrix_world=matrix,
+             transfer=transfer.reshape(len(local), 1, -1), metadata=np.array(json.dumps(meta)))
+    print(f"prt: wrote {args.npz}: {len(local)} vertices, order {meta['order']}, {meta['mode']}")
+    return 0
+
+
+def run_demo(args, in_blender: bool) -> int:
+    from . import demo
+    return demo.run(args.output, workers=args.workers, samples=args.samples)
+
+
+COMMANDS = {"bake": run_bake, "export": run_export, "demo": run_demo}
+
+
+def blender_command(argv) -> int:
+    return main(list(argv), in_blender=True)
+
+
+def register_command():
+    global _cli_handle
+    _cli_handle = bpy.utils.register_cli_command(COMMAND_ID, blender_command)
+
+
+def unregister_command():
+    global _cli_handle
+    if _cli_handle is not None:
+        bpy.utils.unregister_cli_command(_cli_handle)
+        _cli_handle = None

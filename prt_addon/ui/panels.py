@@ -1,0 +1,80 @@
+"""The sidebar tab "PRT" in the 3D View."""
+
+import bpy
+
+from .. import mesh_data
+
+
+class PRT_PT_bake(bpy.types.Panel):
+    bl_label = "Bake"
+    bl_idname = "PRT_PT_bake"
+    bl_space_type = "VIEW_3D"
+    bl_region_type = "UI"
+    bl_category = "PRT"
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        layout.use_property_decorate = False
+        settings = context.scene.prt_bake
+        layout.prop(settings, "mode")
+        layout.prop(settings, "order")
+        column = layout.column()
+        column.enabled = settings.mode == "shadowed"
+        column.prop(settings, "samples")
+        column.prop(settings, "target_error")
+        sub = column.column()
+        sub.enabled = settings.target_error > 0
+        sub.prop(settings, "max_samples")
+        column.prop(settings, "workers")
+        column.prop(settings, "seed")
+        status = context.window_manager.prt_bake_status
+        if status.running:
+            layout.progress(factor=status.fraction, type="BAR", text=status.text)
+        else:
+            row = layout.row(align=True)
+            row.operator("prt.bake", icon="RENDER_STILL")
+            row.operator("prt.clear", icon="X", text="")
+
+
+class PRT_PT_bake_info(bpy.types.Panel):
+    """What is stored on the active object: how, when, and how accurate."""
+    bl_label = "Stored Bake"
+    bl_idname = "PRT_PT_bake_info"
+    bl_space_type = "VIEW_3D"
+    bl_region_type = "UI"
+    bl_category = "PRT"
+    bl_parent_id = "PRT_PT_bake"
+
+    @classmethod
+    def poll(cls, context):
+        ob = context.active_object
+        return ob is not None and ob.type == "MESH"
+
+    def draw(self, context):
+        layout = self.layout
+        mesh = context.active_object.data
+        if mesh_data.METADATA_KEY not in mesh:
+            layout.label(text="Not baked", icon="INFO")
+            return
+        meta = mesh[mesh_data.METADATA_KEY]
+        if meta.get("vertex_count") != len(mesh.vertices):
+            layout.label(text="Stale: the mesh changed since the bake", icon="ERROR")
+        column = layout.column(align=True)
+        column.label(text=f"Order {meta['order']}, {meta['mode']}, {meta['samples']} samples")
+        column.label(text=f"{meta['rays']:,} rays in {meta.get('time_s', 0.0):.1f} s")
+        column.label(text=f"Est. error RMS {meta['est_rms_rel_error']:.4f}, max {meta['est_max_rel_error']:.4f}")
+        column.label(text=f"Baked {meta['date']}")
+
+
+classes = (PRT_PT_bake, PRT_PT_bake_info)
+
+
+def register():
+    for cls in classes:
+        bpy.utils.register_class(cls)
+
+
+def unregister():
+    for cls in reversed(classes):
+        bpy.utils.unregister_class(cls)
