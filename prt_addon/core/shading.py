@@ -1,0 +1,22 @@
+"""Shading a vertex is one dot product: radiance = Σ_k L_k T_k (times albedo)."""
+
+import numpy as np
+
+from . import lobes, rotation
+
+
+def direction_from_angles(theta: float, phi: float) -> np.ndarray:
+    """θ from +Z (the zenith), φ from +X towards +Y, as the seed program's light controls."""
+    return np.array([np.sin(theta) * np.cos(phi), np.sin(theta) * np.sin(phi), np.cos(theta)])
+
+
+def sun_coefficients(order: int, direction, angular_radius: float, irradiance: float = 1.0) -> np.ndarray:
+    """A sun disc around `direction`: a zonal lobe placed in closed form, no rotation matrix."""
+    direction = np.asarray(direction, dtype=np.float64)
+    direction = direction / np.linalg.norm(direction)
+    return rotation.zonal_to_sh(lobes.sun_disc_zonal(order, angular_radius, irradiance), direction)
+
+
+def shade(transfer: np.ndarray, light: np.ndarray) -> np.ndarray:
+    """transfer (V, n²), light (channels, n²) → radiance (V, channels) as contiguous float32."""
+    return np.ascontiguousarray(transfer @ np.asarray(light, dtype=transfer.dtype).T, dtype=np.float32)
