@@ -26,7 +26,9 @@ class SceneBake:
         if problems:
             raise mesh_data.InputError("; ".join(problems))
         self.settings = settings
+        context.view_layer.update()  # objects linked by scripts join the view layer only on update
         self.problems: list[str] = []  # one sentence per object that will not be baked
+        self.notes: list[str] = []     # baked, but the user should know
         depsgraph = context.evaluated_depsgraph_get()
         candidates = mesh_data.receivers_from_selection(context, object_names)
         self.objects, receivers, meshes = [], [], {}
@@ -36,15 +38,19 @@ class SceneBake:
                     raise mesh_data.InputError(
                         f"{ob.name!r} shares its mesh with {meshes[ob.data.name]!r}, and the bake depends on "
                         f"where each object is; make it single-user (Object > Relations) to bake both")
-                receivers.append(mesh_data.receiver_from_object(ob, depsgraph))
+                receivers.append(mesh_data.receiver_from_object(ob, depsgraph, self.notes))
                 meshes[ob.data.name] = ob.name
                 self.objects.append(ob)
             except mesh_data.InputError as problem:
                 self.problems.append(str(problem))
         if not receivers:
             raise mesh_data.InputError("nothing to bake: " + ("; ".join(self.problems) or "no mesh objects"))
-        occluders = (mesh_data.occluders_from_depsgraph(depsgraph, self.objects)
-                     if settings.mode == "shadowed" else None)
+        occluders = None
+        if settings.mode == "shadowed":
+            occluders, sources = mesh_data.occluders_from_depsgraph(depsgraph, self.objects)
+            if sources <= {ob.name for ob in self.objects}:
+                self.notes.append("no visible mesh besides the receivers casts shadows; "
+                                  "each receiver is shadowed by the receivers only")
         self.receivers = receivers
         self.job = job.TransferJob(receivers, occluders, settings, workers, worker_python_prefix())
         self.summary = None
@@ -60,7 +66,9 @@ class SceneBake:
         """Synchronous bake with a log line every 5 % (background mode, command line)."""
         from .core.progress import LogThrottle
         throttle = LogThrottle(0.05)
-        while not self.step(0.5):
+        finished = False
+        while not finished:
+            finished = self.step(0.5)
             if throttle.due(self.progress.fraction):
                 log(self.progress.line())
         return self.store()
@@ -83,5 +91,5 @@ class SceneBake:
             "mode": s.mode, "samples": s.samples, "target_error": s.target_error, "workers": s.workers,
             "rays": s.rays, "skipped_vertices": s.skipped_vertices, "time_s": s.time_s,
             "rays_per_s": s.rays_per_s, "est_rms_rel_error": s.est_rms_rel_error,
-            "est_max_rel_error": s.est_max_rel_error, "per_object": s.per_object, "problems": self.problems,
+            "est_max_rel_error": s.est_max_rel_error, "per_object": s.per_object, "problems": self.problems, "notes": self.notes,
         }

@@ -74,8 +74,10 @@ def check_writable(ob):
         raise InputError(f"{ob.name!r} is in Edit Mode; switch to Object Mode to bake")
 
 
-def receiver_from_object(ob, depsgraph) -> bake.Receiver:
-    """World-space positions and normals of the evaluated mesh, validated vertex by vertex."""
+def receiver_from_object(ob, depsgraph, notes: list) -> bake.Receiver:
+    """World-space positions and normals of the evaluated mesh, validated vertex by vertex.
+
+    Vertices without a surface (loose, or only on zero-area faces) get zero transfer and a note in `notes`."""
     check_writable(ob)
     mesh = ob.data
     if len(mesh.polygons) == 0:
@@ -105,6 +107,9 @@ def receiver_from_object(ob, depsgraph) -> bake.Receiver:
     lengths = np.linalg.norm(world_normals, axis=1, keepdims=True)
     usable = used & (lengths[:, 0] > 0) & np.isfinite(lengths[:, 0])
     world_normals = np.where(usable[:, None], world_normals / np.where(lengths > 0, lengths, 1.0), 0.0)
+    if not usable.all():
+        notes.append(f"{ob.name!r}: {int((~usable).sum())} vertices are loose or only on zero-area faces; "
+                     f"they get zero transfer")
     return bake.Receiver(ob.name, world_positions, world_normals, bake.Receiver.key_for(ob.name))
 
 
@@ -118,9 +123,10 @@ def _face_vertices_with_area(mesh, positions) -> np.ndarray:
     return np.unique(triangles[area > 0])
 
 
-def occluders_from_depsgraph(depsgraph, receivers=()) -> bake.Occluders:
-    """Every visible mesh (modifiers applied, instances expanded) plus the receivers, in world space."""
-    vertex_blocks, triangle_blocks, count = [], [], 0
+def occluders_from_depsgraph(depsgraph, receivers=()) -> tuple[bake.Occluders, set]:
+    """Every visible mesh (modifiers applied, instances expanded) plus the receivers, in world space,
+    and the names of the objects they came from."""
+    vertex_blocks, triangle_blocks, count, sources = [], [], 0, set()
     meshes = {}
     receiver_names = {ob.name for ob in receivers}
     for instance in depsgraph.object_instances:
@@ -138,6 +144,7 @@ def occluders_from_depsgraph(depsgraph, receivers=()) -> bake.Occluders:
         positions, triangles = meshes[key]
         if len(triangles) == 0:
             continue
+        sources.add(owner.name)
         world = _to_world(instance.matrix_world, positions)
         finite = np.isfinite(world).all(1)
         keep = finite[triangles].all(1)  # drop triangles that touch non-finite vertices
@@ -145,10 +152,10 @@ def occluders_from_depsgraph(depsgraph, receivers=()) -> bake.Occluders:
         triangle_blocks.append(triangles[keep] + count)
         count += len(world)
     if not vertex_blocks:
-        return bake.Occluders(np.zeros((0, 3)), np.zeros((0, 3), dtype=np.int32), np.zeros((0, 3)))
+        return bake.Occluders(np.zeros((0, 3)), np.zeros((0, 3), dtype=np.int32), np.zeros((0, 3))), sources
     vertices = np.concatenate(vertex_blocks)
     triangles = np.concatenate(triangle_blocks)
-    return bake.Occluders(vertices, triangles, convex_hull_points(vertices[np.unique(triangles)]))
+    return bake.Occluders(vertices, triangles, convex_hull_points(vertices[np.unique(triangles)])), sources
 
 
 def convex_hull_points(points: np.ndarray) -> np.ndarray:

@@ -7,7 +7,7 @@ from ..core.progress import format_duration
 
 
 def _report_outcome(operator, scene_bake):
-    for problem in scene_bake.problems:
+    for problem in scene_bake.problems + scene_bake.notes:
         operator.report({"WARNING"}, problem)
     operator.report({"INFO"}, scene_bake.summary.line())
 
