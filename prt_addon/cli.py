@@ -92,7 +92,7 @@ def run_bake(args, in_blender: bool) -> int:
                             target_error=args.target_error, max_samples=args.max_samples, seed=args.seed)
     names = [n.strip() for n in args.objects.split(",")] if args.objects else None
     scene_bake = SceneBake(bpy.context, settings, names, workers=args.workers)
-    for problem in scene_bake.problems:
+    for problem in scene_bake.problems + scene_bake.notes:
         print(f"prt: warning: {problem}", file=sys.stderr)
     summary = scene_bake.run(log=lambda line: print(line, flush=True))
     print(summary.line(), flush=True)
