@@ -85,6 +85,9 @@ def test_unselected_scene_bakes_every_visible_mesh_and_hidden_ones_do_not_occlud
     assert "prt" in floor.data and "prt" not in cube.data
     transfer, meta = transfer_of(floor)
     assert meta["skipped_vertices"] == 81  # nothing visible above a flat floor: exact, no rays
+    # and the user is told that nothing else was there to cast shadows
+    scene_bake = SceneBake(bpy.context, BakeSettings(samples=16), ["Floor"])
+    assert any("no visible mesh besides the receivers" in note for note in scene_bake.notes)
     np.testing.assert_allclose(transfer, np.tile(lobes.cosine_transfer(4, np.array([[0, 0, 1.0]])), (81, 1)),
                                atol=1e-6)
 
@@ -131,6 +134,20 @@ def test_saved_file_keeps_everything(empty_scene, tmp_path):
     after, meta_after = transfer_of(bpy.data.objects["Floor"])
     np.testing.assert_array_equal(before, after)
     assert meta_before == meta_after
+
+
+@pytest.mark.parametrize("workers", [1, 2])
+def test_cancelled_bake_leaves_previous_data_exactly(empty_scene, workers):
+    floor, _ = grid("Floor", cuts=40), box("Cube")
+    select(floor)
+    bake(order=3)
+    before, meta_before = transfer_of(floor)
+    scene_bake = SceneBake(bpy.context, BakeSettings(order=4, samples=4096), ["Floor"], workers=workers)
+    assert not scene_bake.step(0.05)  # part of the work, as the modal operator does per timer event
+    scene_bake.cancel()
+    after, meta_after = transfer_of(floor)
+    np.testing.assert_array_equal(before, after)
+    assert meta_before == meta_after and meta_after["order"] == 3
 
 
 def test_stale_bake_is_detected(empty_scene):
@@ -236,7 +253,7 @@ def test_cli_failures_exit_1_with_one_line(args, words):
 def test_cli_bake_report_and_export(tmp_path):
     out, report, npz = tmp_path / "out.blend", tmp_path / "r.json", tmp_path / "t.npz"
     result = run_cli("bake", ROOT / "sample_scenes" / "suzanne.blend", "--objects", "Plane", "--order", "3",
-                     "--samples", "32", "--output", out, "--report", report)
+                     "--samples", "32", "--workers", "2", "--output", out, "--report", report)
     assert result.returncode == 0, result.stderr
     assert "left" in result.stdout and "PRT bake: 1 objects, 441 vertices" in result.stdout
     data = json.loads(report.read_text())
