@@ -159,23 +159,55 @@ def occluders_from_depsgraph(depsgraph, receivers=()) -> tuple[bake.Occluders, s
 
 
 def convex_hull_points(points: np.ndarray) -> np.ndarray:
-    """Vertices of the convex hull (bmesh's hull), the only points the 'provably unoccluded' test needs."""
+    """Vertices of the convex hull: the highest occluder point in any direction is one of them.
+
+    Flat or collinear input has no 3D hull; the bounding box's corners then bound it (conservative: a
+    vertex may lose its proof of being unoccluded, never gain a wrong one)."""
+    centre = 0.5 * (points.min(0) + points.max(0))  # bmesh decides in float32: keep its rounding scene-relative
+    candidates = _outside_polytope_of_extremes(points - centre)
+    if candidates is not None:
+        hull, _ = _hull(candidates)
+        if len(hull) >= 4:
+            return candidates[hull] + centre  # the exact points: bmesh rounds coordinates to float32
+    low, high = points.min(0), points.max(0)
+    return np.array([[x, y, z] for x in (low[0], high[0]) for y in (low[1], high[1]) for z in (low[2], high[2])])
+
+
+def _hull(points: np.ndarray):
+    """bmesh's convex hull: (indices of the hull's vertices in `points`, face planes as (normals, offsets))."""
     import bmesh
-    if len(points) < 4:
-        return points
     bm = bmesh.new()
     try:
         for p in points:
             bm.verts.new(p)
         result = bmesh.ops.convex_hull(bm, input=bm.verts, use_existing_faces=False)
-        hull = {v for v in result["geom"] if isinstance(v, bmesh.types.BMVert)}
-        # Points left inside are 'geom_interior'; 'geom_unused' lie on the hull (coplanar) and are kept.
-        hull.update(v for v in result["geom_unused"] if isinstance(v, bmesh.types.BMVert))
-        if not hull:  # degenerate (coplanar or collinear) input: every point is on the boundary
-            return points
-        return np.array([v.co[:] for v in hull], dtype=np.float64)
+        bm.verts.index_update()
+        vertices = np.array([v.index for v in result["geom"] if isinstance(v, bmesh.types.BMVert)], dtype=np.int64)
+        faces = [f for f in result["geom"] if isinstance(f, bmesh.types.BMFace)]
+        for face in faces:
+            face.normal_update()
+        normals = np.array([f.normal[:] for f in faces]).reshape(-1, 3)
+        offsets = np.array([f.normal.dot(f.verts[0].co) for f in faces])
     finally:
         bm.free()
+    return vertices, (normals, offsets)
+
+
+def _outside_polytope_of_extremes(points: np.ndarray, chunk: int = 1 << 16):
+    """Akl-Toussaint: a point strictly inside the hull of some extreme points is no hull vertex, so the exact
+    hull only needs the rest (for a room with objects inside, a handful of points instead of every vertex)."""
+    axes = np.array([(x, y, z) for x in (-1, 0, 1) for y in (-1, 0, 1) for z in (-1, 0, 1) if (x, y, z) != (0, 0, 0)])
+    extremes = points[np.unique(np.argmax(points @ axes.T, axis=0))]
+    inner, (normals, offsets) = _hull(extremes)
+    if len(inner) < 4 or len(normals) < 4:
+        return None  # flat: no volume to test against
+    outward = np.where(normals @ extremes[inner].mean(0) - offsets > 0, -1.0, 1.0)  # bmesh does not orient them
+    normals, offsets = normals * outward[:, None], offsets * outward
+    tolerance = 1e-5 * (np.abs(points).max() + 1.0)  # bmesh stores float32: keep points near the faces
+    keep = np.concatenate([
+        np.any(block @ normals.T - offsets >= -tolerance, axis=1)
+        for block in np.array_split(points, max(1, len(points) // chunk))])
+    return points[keep]
 
 
 # -- storage --------------------------------------------------------------------------------------------

@@ -114,6 +114,12 @@ def unshadowed_transfer(order: int, normals: np.ndarray) -> np.ndarray:
     return lobes.cosine_transfer(order, normals) * (np.abs(normals).sum(-1, keepdims=True) > 0)
 
 
+def unshadowed_norm(order: int) -> float:
+    """‖T_unshadowed‖, the same for every unit normal (addition theorem: Σ_m Y_lm(n)² = (2l+1)/4π):
+    the scale of each vertex's relative error."""
+    return float(np.linalg.norm(lobes.clamped_cosine_zonal(order)) / np.pi)
+
+
 def provably_unoccluded(positions, normals, hull, offset) -> np.ndarray:
     """True where every occluder lies below the ray origins' plane, so no ray into the hemisphere can hit.
 
@@ -174,8 +180,7 @@ def shadowed_chunk(caster: RayCaster, positions, normals, keys, settings: BakeSe
         if settings.target_error <= 0.0:
             break
         blocked, error = _combine(rounds, rays, count, order)
-        reference = np.linalg.norm(unshadowed[active], axis=1)
-        done = error[active] <= settings.target_error * reference
+        done = error[active] <= settings.target_error * unshadowed_norm(order)
         within_budget = rays[active] + 2 * replicates * per_replicate <= settings.max_samples
         active = active[~done & within_budget]
         round_index += 1

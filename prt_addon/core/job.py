@@ -22,7 +22,7 @@ from .progress import Progress
 
 @dataclass
 class ReceiverResult:
-    transfer: np.ndarray    # (V, n²) float64
+    transfer: np.ndarray    # (V, n²) float32
     std_error: np.ndarray   # (V,) norm of the standard error of the coefficients
     rel_error: np.ndarray   # (V,) std_error ÷ norm of the unshadowed transfer (0 without a surface)
     rays: np.ndarray        # (V,) int64
@@ -73,7 +73,8 @@ class TransferJob:
         self.rays = 0
         self.progress = Progress("PRT bake")
         order = settings.order
-        self._transfer = [np.zeros((len(r.positions), order * order)) for r in receivers]
+        # float32, as stored on the mesh: the job holds the whole mesh's transfer, chunks are float64
+        self._transfer = [np.zeros((len(r.positions), order * order), dtype=np.float32) for r in receivers]
         self._std_error = [np.zeros(len(r.positions)) for r in receivers]
         self._rays = [np.zeros(len(r.positions), dtype=np.int64) for r in receivers]
         self._skipped = [np.zeros(len(r.positions), dtype=bool) for r in receivers]
@@ -177,10 +178,9 @@ class TransferJob:
     # -- results --------------------------------------------------------------------------------------
     def results(self) -> list[ReceiverResult]:
         out = []
+        scale = bake.unshadowed_norm(self.settings.order)
         for index, receiver in enumerate(self.receivers):
-            reference = np.linalg.norm(bake.unshadowed_transfer(self.settings.order, receiver.normals), axis=1)
-            rel_error = np.divide(self._std_error[index], reference, out=np.zeros_like(reference),
-                                  where=reference > 0)
+            rel_error = self._std_error[index] / scale
             out.append(ReceiverResult(self._transfer[index], self._std_error[index], rel_error,
                                       self._rays[index], self._skipped[index]))
         return out
