@@ -98,6 +98,7 @@ def receiver_from_object(ob, depsgraph, notes: list) -> bake.Receiver:
         normals = normals.reshape(-1, 3)
         used = np.zeros(len(positions), dtype=bool)
         used[_face_vertices_with_area(eval_mesh, positions)] = True
+        towards_faces = _towards_faces(_mesh_triangles(eval_mesh), positions)
     finally:
         evaluated.to_mesh_clear()
     matrix = np.array(ob.matrix_world, dtype=np.float64)
@@ -107,10 +108,25 @@ def receiver_from_object(ob, depsgraph, notes: list) -> bake.Receiver:
     lengths = np.linalg.norm(world_normals, axis=1, keepdims=True)
     usable = used & (lengths[:, 0] > 0) & np.isfinite(lengths[:, 0])
     world_normals = np.where(usable[:, None], world_normals / np.where(lengths > 0, lengths, 1.0), 0.0)
+    inward = towards_faces @ matrix[:3, :3].T
+    inward -= np.einsum("ij,ij->i", inward, world_normals)[:, None] * world_normals  # tangent only
+    length = np.linalg.norm(inward, axis=1, keepdims=True)
+    inward = np.where(length > 1e-12 * np.linalg.norm(np.ptp(world_positions, axis=0)),
+                      inward / np.where(length > 0, length, 1.0), 0.0)
     if not usable.all():
         notes.append(f"{ob.name!r}: {int((~usable).sum())} vertices are loose or only on zero-area faces; "
                      f"they get zero transfer")
-    return bake.Receiver(ob.name, world_positions, world_normals, bake.Receiver.key_for(ob.name))
+    return bake.Receiver(ob.name, world_positions, world_normals, bake.Receiver.key_for(ob.name), inward)
+
+
+def _towards_faces(triangles: np.ndarray, positions: np.ndarray) -> np.ndarray:
+    """Per vertex: mean of its triangles' centroids minus the vertex (object space, not normalised)."""
+    centroids = positions[triangles].mean(axis=1)
+    total = np.zeros_like(positions)
+    for corner in range(3):
+        np.add.at(total, triangles[:, corner], centroids)
+    count = np.bincount(triangles.ravel(), minlength=len(positions))[:, None]
+    return np.where(count > 0, total / np.maximum(count, 1) - positions, 0.0)
 
 
 def _face_vertices_with_area(mesh, positions) -> np.ndarray:

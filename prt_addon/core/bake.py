@@ -31,8 +31,9 @@ CHUNK_VERTICES = 64
 # Ray origins sit this fraction of the scene's diagonal above the surface: scale-free, and far above
 # float32 rounding because the geometry is recentred on the scene's bounding box before the BVH is built.
 OFFSET_FRACTION = 1e-5
-# Version of the stored layout and conventions; bump when either changes.
-CONVENTION_VERSION = 1
+# Version of the stored layout and conventions; bump when either changes (2: surfaces touching a vertex
+# no longer occlude it, as in Cycles).
+CONVENTION_VERSION = 2
 
 
 @dataclass
@@ -75,6 +76,9 @@ class Receiver:
     positions: np.ndarray  # (V, 3) float64
     normals: np.ndarray    # (V, 3) float64, unit; zero rows are vertices without a surface
     key: int
+    # (V, 3) unit tangents from each vertex towards the inside of its faces, zero where there is no inside:
+    # a vertex on a seam where another surface stands is baked as seen from its own faces' side.
+    inward: np.ndarray | None = None
 
     @staticmethod
     def key_for(name: str) -> int:
@@ -145,16 +149,25 @@ class RayCaster:
         self.tree = BVHTree.FromPolygons(local.tolist(), occluders.triangles.tolist(), all_triangles=True)
 
     def occluded(self, origins: np.ndarray, directions: np.ndarray) -> np.ndarray:
-        """origins (c, 3), directions (c, k, 3) → (c, k) bool: did the ray hit anything."""
+        """origins (c, 3), directions (c, k, 3) → (c, k) bool: did the ray hit anything.
+
+        A hit closer than the origin offset is a surface passing through the vertex itself (a floor vertex on
+        the line where a wall stands): like Cycles, the ray goes on past it instead of counting it."""
         cast = self.tree.ray_cast
         distance = self.max_distance
         count = directions.shape[0] * directions.shape[1]
-        hits = (cast(o, d, distance)[2] is not None
+        hits = ((cast(o, d, distance)[3] or -1.0)
                 for o, ds in zip(origins.tolist(), directions.tolist()) for d in ds)
-        return np.fromiter(hits, dtype=bool, count=count).reshape(directions.shape[:2])
+        hit_distance = np.fromiter(hits, dtype=np.float64, count=count).reshape(directions.shape[:2])
+        touching = np.nonzero((hit_distance >= 0.0) & (hit_distance < self.offset))
+        if len(touching[0]):
+            beyond = origins[touching[0]] + 2.0 * self.offset * directions[touching]
+            hit_distance[touching] = [cast(o, d, distance)[3] or -1.0
+                                      for o, d in zip(beyond.tolist(), directions[touching].tolist())]
+        return hit_distance >= 0.0
 
 
-def shadowed_chunk(caster: RayCaster, positions, normals, keys, settings: BakeSettings):
+def shadowed_chunk(caster: RayCaster, positions, normals, inward, keys, settings: BakeSettings):
     """Generator: bakes one chunk, yielding the rays cast after each round; returns a ChunkResult."""
     order, replicates = settings.order, settings.replicates
     positions = positions - caster.center
@@ -167,7 +180,7 @@ def shadowed_chunk(caster: RayCaster, positions, normals, keys, settings: BakeSe
     rays = np.zeros(count, dtype=np.int64)
     active = np.flatnonzero(has_surface & ~skipped)
     tangents, bitangents = sampling.orthonormal_basis(np.where(has_surface[:, None], normals, [0.0, 0.0, 1.0]))
-    origins = positions + caster.offset * normals
+    origins = positions + caster.offset * (normals + inward)
     round_index, per_replicate = 0, settings.points_per_replicate
     rounds = []  # (vertices, rays per vertex, blocked mean, blocked variance) per round, combined below
     while len(active):
@@ -243,4 +256,5 @@ def bake_chunk(caster, receiver: Receiver, start: int, stop: int, settings: Bake
         return ChunkResult(unshadowed_transfer(settings.order, normals), np.zeros(count),
                            np.zeros(count, dtype=np.int64), np.zeros(count, dtype=bool))
     keys = vertex_keys(receiver, start, stop)
-    return (yield from shadowed_chunk(caster, receiver.positions[start:stop], normals, keys, settings))
+    inward = np.zeros_like(normals) if receiver.inward is None else receiver.inward[start:stop]
+    return (yield from shadowed_chunk(caster, receiver.positions[start:stop], normals, inward, keys, settings))

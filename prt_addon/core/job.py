@@ -245,6 +245,8 @@ def save_job(path, receivers, occluders, settings: bake.BakeSettings):
     for index, receiver in enumerate(receivers):
         arrays[f"positions_{index}"] = receiver.positions
         arrays[f"normals_{index}"] = receiver.normals
+        if receiver.inward is not None:
+            arrays[f"inward_{index}"] = receiver.inward
     meta = {"settings": settings.__dict__, "receivers": [[r.name, r.key] for r in receivers]}
     np.savez(path, meta=np.array(json.dumps(meta)), **arrays)
 
@@ -253,7 +255,8 @@ def load_job(path):
     with np.load(path) as data:
         meta = json.loads(str(data["meta"]))
         occluders = bake.Occluders(data["occluder_vertices"], data["occluder_triangles"], data["occluder_hull"])
-        receivers = [bake.Receiver(name, data[f"positions_{i}"], data[f"normals_{i}"], key)
+        receivers = [bake.Receiver(name, data[f"positions_{i}"], data[f"normals_{i}"], key,
+                                   data[f"inward_{i}"] if f"inward_{i}" in data else None)
                      for i, (name, key) in enumerate(meta["receivers"])]
     return receivers, occluders, bake.BakeSettings(**meta["settings"])
 
