@@ -46,6 +46,18 @@ def build_parser() -> argparse.ArgumentParser:
     export.add_argument("--object", required=True, help="object name")
     export.add_argument("--npz", required=True, help="output .npz path")
 
+    relight = commands.add_parser("relight", help="re-render a baked .blend file under changed SH lights")
+    relight.add_argument("file", help=".blend file with a bake and SH lights")
+    relight.add_argument("--light", type=int, help="index of the SH light to aim (default: the active one)")
+    relight.add_argument("--light-theta", type=float, metavar="DEGREES", help="angle from the zenith; a light that "
+                         "follows a Sun object stops following it")
+    relight.add_argument("--light-phi", type=float, metavar="DEGREES", help="azimuth, from +X towards +Y")
+    relight.add_argument("--engine", choices=("EEVEE", "WORKBENCH"), default="EEVEE",
+                         help="EEVEE: PRT colour × albedo texture; WORKBENCH: the PRT colour alone, faster")
+    relight.add_argument("--samples", type=int, default=4, help="EEVEE render samples")
+    relight.add_argument("--resolution", type=_resolution, metavar="WxH", help="default: the file's")
+    relight.add_argument("--render", required=True, metavar="OUT.png", help="where to write the image")
+
     demo = commands.add_parser("demo", help="build the sample scene, bake, relight, render a PNG and a report")
     demo.add_argument("--output", default="demo_output", help="folder for the PNG, report and .blend")
     demo.add_argument("--workers", type=int, default=2)
@@ -53,14 +65,24 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _resolution(text):
+    try:
+        width, height = (int(part) for part in text.lower().split("x"))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected WIDTHxHEIGHT, e.g. 640x480, got {text!r}") from None
+    if width < 1 or height < 1:
+        raise argparse.ArgumentTypeError(f"resolution must be positive, got {text!r}")
+    return width, height
+
+
 def main(argv, in_blender: bool = False) -> int:
-    from . import mesh_data
+    from . import mesh_data, relight
     try:
         args = build_parser().parse_args(argv)
         return COMMANDS[args.command](args, in_blender)
     except SystemExit as leaving:  # --help
         return int(leaving.code or 0)
-    except (CliError, mesh_data.InputError, mesh_data.StaleBake) as failure:
+    except (CliError, mesh_data.InputError, mesh_data.StaleBake, relight.RelightError) as failure:
         print(f"prt: error: {failure}", file=sys.stderr)
         return 1
     except Exception as failure:  # any other failure still gets its one line
@@ -129,12 +151,24 @@ def run_export(args, in_blender: bool) -> int:
     return 0
 
 
+def run_relight(args, in_blender: bool) -> int:
+    from . import relight
+    done = relight.relight_file(args.file, args.render, args.light, args.light_theta, args.light_phi,
+                                engine=args.engine, samples=args.samples, resolution=args.resolution)
+    width, height = done["resolution"]
+    print(f"prt: rendered {done['path']} with {done['engine']} at {width}×{height} in {done['render_s']:.1f} s "
+          f"(relit in {1000 * done['relight_s']:.0f} ms)")
+    for line in done["lights"]:
+        print(f"prt:   {line}")
+    return 0
+
+
 def run_demo(args, in_blender: bool) -> int:
     from . import demo
     return demo.run(args.output, workers=args.workers, samples=args.samples)
 
 
-COMMANDS = {"bake": run_bake, "export": run_export, "demo": run_demo}
+COMMANDS = {"bake": run_bake, "export": run_export, "relight": run_relight, "demo": run_demo}
 
 
 def blender_command(argv) -> int:

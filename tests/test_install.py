@@ -28,21 +28,28 @@ def test_zip_holds_only_the_addon(built_zip):
 
 def _our_classes():
     return [cls for cls in bpy.types.Operator.__subclasses__() + bpy.types.Panel.__subclasses__()
-            + bpy.types.PropertyGroup.__subclasses__() if cls.__module__.startswith(ADDON_MODULE)]
+            + bpy.types.PropertyGroup.__subclasses__() + bpy.types.UIList.__subclasses__()
+            if cls.__module__.startswith(ADDON_MODULE)]
 
 
 def _our_handlers():
-    return [f for name in dir(bpy.app.handlers) if not name.startswith("_")
-            for f in (getattr(bpy.app.handlers, name) if isinstance(getattr(bpy.app.handlers, name), list) else [])
-            if getattr(f, "__module__", "").startswith(ADDON_MODULE)]
+    """{handler list name: [function names]} of our functions in bpy.app.handlers."""
+    found = {}
+    for name in dir(bpy.app.handlers):
+        handlers = getattr(bpy.app.handlers, name)
+        if not name.startswith("_") and isinstance(handlers, list):
+            ours = [f.__name__ for f in handlers if getattr(f, "__module__", "").startswith(ADDON_MODULE)]
+            if ours:
+                found[name] = ours
+    return found
 
 
 def test_registered_with_blender_names(addon):
     assert addon in bpy.context.preferences.addons
-    for op in ("bake", "clear"):
+    for op in ("bake", "clear", "light_add", "light_remove"):
         assert getattr(bpy.ops.prt, op).idname() == f"PRT_OT_{op}"
-    assert hasattr(bpy.types, "PRT_PT_bake")
-    assert bpy.types.PRT_PT_bake.bl_category == "PRT"
+    for panel in ("PRT_PT_bake", "PRT_PT_lights"):
+        assert getattr(bpy.types, panel).bl_category == "PRT"
     names = [cls.__name__ for cls in _our_classes()]
     assert "PRT_OT_bake" in names
     for name in names:
@@ -55,7 +62,13 @@ def test_disable_enable_leaves_nothing_behind(addon, cycle):
     bpy.ops.preferences.addon_disable(module=addon)
     assert not hasattr(bpy.types, "PRT_OT_bake")
     assert not hasattr(bpy.types.Scene, "prt_bake")
-    assert _our_handlers() == []
+    assert _our_handlers() == {}
+    assert not hasattr(bpy.types.Scene, "prt_lights")
     bpy.ops.preferences.addon_enable(module=addon)
     assert hasattr(bpy.types, "PRT_OT_bake")
     assert bpy.context.scene.prt_bake.order == 4
+    assert _our_handlers() == {"depsgraph_update_post": ["on_depsgraph_update"],
+                               "frame_change_post": ["on_frame_change"], "load_post": ["on_load_post"]}
+    ours = [f for handlers in (bpy.app.handlers.depsgraph_update_post, bpy.app.handlers.frame_change_post)
+            for f in handlers if f.__module__.startswith(ADDON_MODULE)]
+    assert all(hasattr(f, "_bpy_persistent") for f in ours)  # kept when another file is loaded

@@ -120,12 +120,14 @@ def rotate(coeffs, R, order=None):
 def zonal_to_sh(zonal, direction):
     """SH of the zonal lobe with coefficients z_l about +Z, turned to point along direction.
 
-    zonal (n,), direction (3,) or (N, 3) -> (n²,) or (N, n²): f_lm = sqrt(4π/(2l+1)) z_l Y_lm(d).
+    zonal (n,) or (N, n), direction (3,) or (N, 3) -> (n²,) or (N, n²): f_lm = sqrt(4π/(2l+1)) z_l Y_lm(d).
+    N lobes in one call share one SH evaluation.
     """
     zonal = np.asarray(zonal, dtype=np.float64)
-    bands = sh.coefficient_bands(len(zonal))
-    scale = np.sqrt(4.0 * math.pi / (2 * bands + 1)) * zonal[bands]
-    return sh.evaluate(len(zonal), direction) * scale
+    order = zonal.shape[-1]
+    bands = sh.coefficient_bands(order)
+    scale = np.sqrt(4.0 * math.pi / (2 * bands + 1)) * zonal[..., bands]
+    return sh.evaluate(order, direction) * scale
 
 
 def _rotation_z(angle):

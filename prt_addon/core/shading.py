@@ -1,13 +1,18 @@
 """Shading a vertex is one dot product: radiance = Σ_k L_k T_k (times albedo)."""
 
+import math
+
 import numpy as np
 
 from . import lobes, rotation
 
 
-def direction_from_angles(theta: float, phi: float) -> np.ndarray:
-    """θ from +Z (the zenith), φ from +X towards +Y, as the seed program's light controls."""
-    return np.array([np.sin(theta) * np.cos(phi), np.sin(theta) * np.sin(phi), np.cos(theta)])
+def direction_from_angles(theta: float, phi: float) -> tuple[float, float, float]:
+    """θ from +Z (the zenith), φ from +X towards +Y, as the seed program's light controls.
+
+    A tuple from scalar maths: the handler calls this for every sun on every update, and lights hash it."""
+    sin_theta = math.sin(theta)
+    return sin_theta * math.cos(phi), sin_theta * math.sin(phi), math.cos(theta)
 
 
 def sun_coefficients(order: int, direction, angular_radius: float, irradiance: float = 1.0) -> np.ndarray:

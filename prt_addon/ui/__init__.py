@@ -1,8 +1,9 @@
-"""The Blender interface: properties, operators, panels (and later handlers), registered in that order."""
+"""The Blender interface: properties, operators, panels, SH lights, handlers and overlays, registered in that
+order (the lights' panel comes after the bake's in the sidebar)."""
 
-from . import operators, panels, properties
+from . import handlers, lights, operators, overlays, panels, properties
 
-modules = (properties, operators, panels)
+modules = (properties, operators, panels, lights, handlers, overlays)
 
 
 def register():

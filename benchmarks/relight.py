@@ -1,0 +1,150 @@
+"""Relighting speed: from a light change to the colour attribute written, through the real depsgraph handler.
+
+    .venv/bin/python benchmarks/relight.py [--steps 60] [--json PATH]
+
+For grids of 10 k, 100 k and 1 M vertices baked at order 4 (unshadowed: the timing does not depend on the
+transfer's values), it changes lights' θ, runs `view_layer.update()` and measures the time until the handler has
+written the colours: with 1 light, with 8 lights of which one moves (the panel's case) and with 8 lights that all
+move (a driver on each). The three alternate update by update, so that a busy moment of the machine hits them
+alike; it prints the median times and the median over updates of the ratio 8 ÷ 1 of neighbouring updates.
+"full update" is the whole `view_layer.update()` with 1 light: it adds Blender re-evaluating the written mesh,
+which follows every write of mesh data and is outside the add-on's control.
+Goals on this machine: ≤ 33 ms at 1 M vertices, and 8 lights ÷ 1 light ≤ 1.1.
+"""
+
+import argparse
+import gc
+import json
+import math
+import os
+import statistics
+import sys
+import time
+
+sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+
+import bpy  # noqa: E402  (before mathutils, which the core uses)
+
+from prt_addon import baking, display, ui  # noqa: E402
+from prt_addon.core import bake  # noqa: E402
+
+SIDES = (100, 317, 1000)  # grid side: 10 k, 100 k and 1 M vertices
+LIGHTS = 8
+GOAL_MS = 33.0
+GOAL_RATIO = 1.1
+
+
+def baked_grid(side):
+    bpy.ops.wm.read_homefile(use_empty=True)
+    bpy.ops.mesh.primitive_grid_add(x_subdivisions=side - 1, y_subdivisions=side - 1, size=2)
+    baking.SceneBake(bpy.context, bake.BakeSettings(order=4, mode="unshadowed")).run(log=lambda line: None)
+    return bpy.context.object
+
+
+class WriteClock:
+    """Wraps the colour write the handler calls, noting when it returns."""
+
+    def __init__(self):
+        self.written_at = None
+        self._write = display.write_display_colours
+
+    def __enter__(self):
+        def timed_write(*args):
+            self._write(*args)
+            self.written_at = time.perf_counter()
+        display.write_display_colours = timed_write
+        return self
+
+    def __exit__(self, *exc):
+        display.write_display_colours = self._write
+
+
+def set_light_count(scene, count):
+    """Adds or removes suns, then lets the handler settle with an update that is not timed."""
+    while len(scene.prt_lights) > count:
+        scene.prt_lights.remove(len(scene.prt_lights) - 1)
+    while len(scene.prt_lights) < count:
+        bpy.ops.prt.light_add(kind="SUN")
+        scene.prt_lights[-1].phi = 2 * math.pi * len(scene.prt_lights) / LIGHTS
+    scene.update_tag()
+    bpy.context.view_layer.update()
+
+
+def timed_update(moving, theta, clock):
+    """(seconds from changing θ of the `moving` lights to the colours written, seconds of the whole update)."""
+    clock.written_at = None
+    start = time.perf_counter()
+    for k, light in enumerate(moving):
+        light.theta = theta + 0.01 * k
+    bpy.context.view_layer.update()
+    end = time.perf_counter()
+    if clock.written_at is None:
+        raise RuntimeError("the handler did not write the colours")
+    return clock.written_at - start, end - start
+
+
+def measure(scene, steps, clock):
+    """Median ms for 1 light, 8 with one moving, 8 all moving, and the whole update with 1 light.
+
+    The configurations alternate update by update, so that a busy moment of the machine hits them alike."""
+    samples = {"one": [], "eight_one": [], "eight_all": [], "full": []}
+    for step in range(steps):
+        theta = 0.2 + 1.2 * ((step * 0.37) % 1.0)
+        set_light_count(scene, 1)
+        written, full = timed_update(scene.prt_lights[:1], theta, clock)
+        samples["one"].append(written)
+        samples["full"].append(full)
+        set_light_count(scene, LIGHTS)
+        samples["eight_one"].append(timed_update(scene.prt_lights[:1], theta + 0.1, clock)[0])
+        samples["eight_all"].append(timed_update(list(scene.prt_lights), theta + 0.2, clock)[0])
+    medians = {name: 1000 * statistics.median(values) for name, values in samples.items()}
+    # Ratios of neighbouring updates, then their median: a busy moment spoils one pair, not the ratio.
+    for name, eight in (("ratio_one_moving", samples["eight_one"]), ("ratio_all_moving", samples["eight_all"])):
+        medians[name] = statistics.median(e / o for e, o in zip(eight, samples["one"]))
+    return medians
+
+
+def verdict(met):
+    return "PASS" if met else "MISS"
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--steps", type=int, default=60, help="timed updates per configuration")
+    parser.add_argument("--json", metavar="PATH", help="also write the numbers as JSON")
+    args = parser.parse_args(argv)
+    ui.register()
+    print(f"relight benchmark: bpy {bpy.app.version_string}, {os.cpu_count()} cores, "
+          f"load average {os.getloadavg()[0]:.2f}")
+    print(f"order 4, median of {args.steps} updates each; ms from a light change to the colours written")
+    print(f"{'vertices':>10} {'1 light':>9} {'8 (1 moves)':>12} {'ratio':>6} {'8 (all move)':>13} {'ratio':>6}"
+          f" {'full update':>12}")
+    results = {}
+    gc.disable()  # a collection in the middle of a timed update says nothing about relighting
+    with WriteClock() as clock:
+        for side in SIDES:
+            vertices = len(baked_grid(side).data.vertices)
+            ms = measure(bpy.context.scene, args.steps, clock)
+            results[vertices] = ms
+            print(f"{vertices:>10,} {ms['one']:>7.2f}ms {ms['eight_one']:>10.2f}ms {ms['ratio_one_moving']:>6.2f}"
+                  f" {ms['eight_all']:>11.2f}ms {ms['ratio_all_moving']:>6.2f} {ms['full']:>10.2f}ms")
+            gc.collect()
+    gc.enable()
+    ui.unregister()
+    largest = max(results)
+    time_ms = results[largest]["one"]
+    print(f"per update at {largest:,} vertices: {time_ms:.1f} ms   goal <= {GOAL_MS:.0f} ms   "
+          f"{verdict(time_ms <= GOAL_MS)}")
+    for vertices, ms in results.items():
+        print(f"8 lights ÷ 1 light at {vertices:,} vertices (one moving): {ms['ratio_one_moving']:.2f}   "
+              f"goal <= {GOAL_RATIO}   {verdict(ms['ratio_one_moving'] <= GOAL_RATIO)}")
+    if args.json:
+        os.makedirs(os.path.dirname(os.path.abspath(args.json)), exist_ok=True)
+        with open(args.json, "w", encoding="utf-8") as handle:
+            json.dump({"steps": args.steps, "ms_by_vertices": results}, handle, indent=2)
+        print(f"wrote {args.json}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

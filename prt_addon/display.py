@@ -1,0 +1,175 @@
+"""What the artist sees: the PRT colour attribute, and display materials that show it × albedo.
+
+The colour attribute holds Σ_k L_k T_k (the radiance of a white surface), which Workbench's Attribute colour
+shows as it is. Display materials multiply it per pixel by the albedo (the original material's Base Color
+texture, or its Base Color) into an Emission of strength 1, so EEVEE shows exactly albedo · Σ_k L_k T_k.
+
+Display materials replace an object's materials without losing them: the originals' names are kept in the
+object's `_prt_original_materials` property and put back when the display is switched off or the add-on disabled.
+"""
+
+import bpy
+import numpy as np
+
+from .core import shading
+
+DISPLAY_ATTRIBUTE = "prt_color"
+ORIGINALS_KEY = "_prt_original_materials"  # on an object: its materials' names while the display is shown
+DISPLAY_OF_KEY = "_prt_display_of"  # on a display material: the name of the material it stands for
+ALBEDO_MIX = "PRT Albedo"  # the Mix node whose factor is the albedo switch
+DEFAULT_ALBEDO = (0.8, 0.8, 0.8)  # what Blender renders a mesh without material with
+
+
+# -- colours ----------------------------------------------------------------------------------------------------
+def write_display_colours(mesh, transfer: np.ndarray, light: np.ndarray):
+    """Σ_k L_k T_k for transfer (V, n²) and light (3, n²) into a FLOAT_COLOR point attribute, alpha 1.
+
+    Negative values, which a ringing light gives, are clamped to black."""
+    alpha_free = np.vstack([light, np.zeros((1, light.shape[1]))])  # a zero row: shade() fills four columns
+    rgba = shading.shade(transfer, alpha_free)
+    rgba[:, 3] = 1.0
+    np.maximum(rgba, 0.0, out=rgba)
+    _colour_attribute(mesh).data.foreach_set("color", rgba.ravel())
+    mesh.update_tag()  # a depsgraph tag only: no context needed, so it is safe from a render's frame handler
+
+
+def _colour_attribute(mesh):
+    existing = mesh.color_attributes.get(DISPLAY_ATTRIBUTE)
+    if existing is not None and (existing.data_type, existing.domain) != ("FLOAT_COLOR", "POINT"):
+        mesh.color_attributes.remove(existing)  # someone else's layer of that name: ours is recomputed anyway
+        existing = None
+    if existing is None:
+        mesh.color_attributes.new(DISPLAY_ATTRIBUTE, "FLOAT_COLOR", "POINT")
+        # The active colour is what Workbench's Attribute colour shows.
+        mesh.color_attributes.active_color = mesh.color_attributes[DISPLAY_ATTRIBUTE]
+    # Look it up again by name: adding a layer can invalidate earlier references.
+    return mesh.color_attributes[DISPLAY_ATTRIBUTE]
+
+
+# -- display materials ----------------------------------------------------------------------------------------
+def is_shown(ob) -> bool:
+    return ORIGINALS_KEY in ob
+
+
+def show(ob):
+    """Display materials in each of ob's slots (one new slot when it has none); the originals are remembered."""
+    if is_shown(ob):
+        return
+    originals = [slot.material for slot in ob.material_slots]
+    ob[ORIGINALS_KEY] = [material.name if material else "" for material in originals]
+    if not originals:
+        ob.data.materials.append(display_material(None))
+    for slot, original in zip(ob.material_slots, originals):
+        slot.material = display_material(original)
+
+
+def restore(ob):
+    """Puts ob's own materials back (removing the slot `show` added) and drops unused display materials."""
+    names = list(ob[ORIGINALS_KEY])
+    shown = {slot.material for slot in ob.material_slots}
+    if names:
+        for slot, name in zip(ob.material_slots, names):
+            slot.material = bpy.data.materials.get(name) if name else None
+    else:
+        ob.data.materials.clear()
+    del ob[ORIGINALS_KEY]
+    for material in shown:
+        if material is not None and DISPLAY_OF_KEY in material and material.users == 0:
+            bpy.data.materials.remove(material)
+
+
+def restore_all():
+    for ob in bpy.data.objects:
+        if is_shown(ob):
+            restore(ob)
+
+
+def set_albedo(use_albedo: bool):
+    """The albedo switch: every display material multiplies by its albedo (factor 1) or not (factor 0)."""
+    factor = 1.0 if use_albedo else 0.0
+    for material in bpy.data.materials:
+        if DISPLAY_OF_KEY not in material:
+            continue
+        switch = _socket(material.node_tree.nodes[ALBEDO_MIX].inputs, "Factor_Float")
+        if switch.default_value != factor:
+            switch.default_value = factor
+
+
+def display_material(original):
+    """The display material standing for `original` (None: an object without material), made once."""
+    stands_for = original.name if original else ""
+    existing = next((m for m in bpy.data.materials if m.get(DISPLAY_OF_KEY) == stands_for), None)
+    return existing or _new_display_material(f"PRT {stands_for}" if original else "PRT Display", original)
+
+
+def _new_display_material(name, original):
+    material = bpy.data.materials.new(name)
+    material[DISPLAY_OF_KEY] = original.name if original else ""
+    if material.node_tree is None:  # before Blender 5.0 new materials have no node tree
+        material.use_nodes = True
+    nodes, links = material.node_tree.nodes, material.node_tree.links
+    nodes.clear()
+    colour = nodes.new("ShaderNodeVertexColor")
+    colour.layer_name = DISPLAY_ATTRIBUTE
+    mix = nodes.new("ShaderNodeMix")
+    mix.name = ALBEDO_MIX
+    mix.data_type = "RGBA"
+    mix.blend_type = "MULTIPLY"
+    emission = nodes.new("ShaderNodeEmission")
+    output = nodes.new("ShaderNodeOutputMaterial")
+    for x, node in zip((-300, 0, 250, 450), (colour, mix, emission, output)):
+        node.location = (x, 0)
+    links.new(colour.outputs["Color"], _socket(mix.inputs, "A_Color"))
+    links.new(_socket(mix.outputs, "Result_Color"), emission.inputs["Color"])
+    links.new(emission.outputs["Emission"], output.inputs["Surface"])
+    _socket(mix.inputs, "Factor_Float").default_value = 1.0
+    _connect_albedo(material, _socket(mix.inputs, "B_Color"), original)
+    return material
+
+
+def _socket(sockets, identifier):
+    """The Mix node has one socket per data type under the same name; identifiers tell them apart."""
+    return next(socket for socket in sockets if socket.identifier == identifier)
+
+
+def _connect_albedo(material, socket, original):
+    """Feeds `socket` with the original's albedo: its Base Color texture (through the same UV map) or value."""
+    texture, value = _albedo_of(original)
+    socket.default_value = (*value, 1.0)
+    if texture is None:
+        return
+    nodes, links = material.node_tree.nodes, material.node_tree.links
+    image = nodes.new("ShaderNodeTexImage")
+    image.location = (-300, -250)
+    for setting in ("image", "interpolation", "projection", "extension"):
+        setattr(image, setting, getattr(texture, setting))
+    links.new(image.outputs["Color"], socket)
+    uv_map = _uv_map_feeding(texture)
+    if uv_map:
+        uv = nodes.new("ShaderNodeUVMap")
+        uv.location = (-550, -250)
+        uv.uv_map = uv_map
+        links.new(uv.outputs["UV"], image.inputs["Vector"])
+
+
+def _albedo_of(material):
+    """(image texture node or None, Base Color value) of the shader feeding the material's output."""
+    if material is None:
+        return None, DEFAULT_ALBEDO
+    if material.node_tree is None:
+        return None, tuple(material.diffuse_color[:3])
+    output = material.node_tree.get_output_node("ALL")
+    surface = output.inputs["Surface"].links if output else ()
+    shader = surface[0].from_node if surface else None
+    base = shader and (shader.inputs.get("Base Color") or shader.inputs.get("Color"))
+    if base is None:
+        return None, tuple(material.diffuse_color[:3])
+    source = base.links[0].from_node if base.links else None
+    texture = source if source is not None and source.type == "TEX_IMAGE" and source.image else None
+    return texture, tuple(base.default_value[:3])
+
+
+def _uv_map_feeding(texture) -> str:
+    """The UV map named by a UV Map node on the texture's Vector input; "" means the active one."""
+    links = texture.inputs["Vector"].links
+    return links[0].from_node.uv_map if links and links[0].from_node.type == "UVMAP" else ""

@@ -1,0 +1,260 @@
+"""SH lights and display switches, stored in the scene; the light-driver panel in the sidebar tab "PRT".
+
+Every property is animatable and drivable. Each one has an update callback: Blender then tags the scene when it
+is set from Python too (not only from the UI), so the depsgraph handler sees the change.
+"""
+
+import math
+
+import bpy
+import numpy as np
+from bpy.props import (BoolProperty, CollectionProperty, EnumProperty, FloatProperty, FloatVectorProperty,
+                       IntProperty, PointerProperty)
+from mathutils import Vector
+
+from ..core import lights, shading
+
+KINDS = [
+    ("SUN", "Sun", "A disc of light from one direction, optionally following a Sun light object", "LIGHT_SUN", 0),
+    ("ENVIRONMENT", "Environment", "An equirectangular image around the scene (default: the World's)", "WORLD", 1),
+    ("SKY", "Sky", "The same light from every direction", "LIGHT_HEMI", 2),
+]
+WINDOWS = [
+    ("none", "None", "Full sharpness; sharp lights ring (the negative values are clamped at display)"),
+    ("hanning", "Hanning", "Tapers high bands strongly: softest, no visible ringing"),
+    ("lanczos", "Lanczos", "Tapers high bands gently: between sharp and soft"),
+]
+
+
+def _tag_scene(self, context):
+    self.id_data.update_tag()
+
+
+def _is_sun_object(self, ob):
+    return ob.type == "LIGHT" and ob.data.type == "SUN"
+
+
+class PRT_PG_light(bpy.types.PropertyGroup):
+    """One SH light; `name` (from PropertyGroup) is what the list shows."""
+    kind: EnumProperty(name="Kind", items=KINDS, default="SUN", update=_tag_scene)
+    use: BoolProperty(name="Enabled", description="Include this light in the sum", default=True,
+                      update=_tag_scene)
+    colour: FloatVectorProperty(name="Colour", subtype="COLOR", size=3, min=0.0, soft_max=1.0,
+                                default=(1.0, 1.0, 1.0), update=_tag_scene)
+    strength: FloatProperty(
+        name="Strength", min=0.0, soft_max=10.0, default=1.0, update=_tag_scene,
+        description="Sun: irradiance on a surface facing it (as Blender's Sun Strength). "
+                    "Environment: multiplies the image. Sky: radiance")
+    theta: FloatProperty(name="θ", description="Angle of the light from the zenith (+Z)", subtype="ANGLE",
+                         min=0.0, max=math.pi, default=math.radians(35.0), update=_tag_scene)
+    phi: FloatProperty(name="φ", description="Azimuth of the light, from +X towards +Y", subtype="ANGLE",
+                       soft_min=-math.pi, soft_max=math.pi, default=math.radians(-60.0), update=_tag_scene)
+    sun_object: PointerProperty(
+        name="Sun Object", type=bpy.types.Object, poll=_is_sun_object, update=_tag_scene,
+        description="Follow this Sun light: its rotation gives the direction and its Angle the disc size")
+    angular_radius: FloatProperty(
+        name="Radius", description="Angular radius of the sun's disc (a linked Sun's Angle / 2)",
+        subtype="ANGLE", min=0.0, max=math.pi / 2, default=math.radians(2.5), update=_tag_scene)
+    image: PointerProperty(name="Image", type=bpy.types.Image, update=_tag_scene,
+                           description="Equirectangular image; empty: the World's Environment Texture")
+    rotation: FloatVectorProperty(name="Rotation", subtype="EULER", size=3, update=_tag_scene,
+                                  description="Turns the environment: what was along d comes from R·d")
+
+    def rgb(self) -> tuple:
+        strength = self.strength
+        return tuple(strength * c for c in self.colour)
+
+    def sun_direction(self) -> tuple:
+        """Towards the sun in world space: the linked object's local +Z (a Sun shines along −Z), else θ, φ."""
+        if self.sun_object is not None:
+            return tuple(self.sun_object.matrix_world.to_quaternion() @ Vector((0.0, 0.0, 1.0)))
+        return shading.direction_from_angles(self.theta, self.phi)
+
+    def sun_angular_radius(self) -> float:
+        if self.sun_object is not None:
+            return self.sun_object.data.angle / 2
+        return self.angular_radius
+
+    def environment_image(self, scene):
+        """The chosen image, else the World's Environment Texture; None when there is neither or it is empty."""
+        image = self.image or _world_environment_image(scene.world)
+        if image is None or 0 in image.size:
+            return None
+        return image.original
+
+    def to_light(self, scene):
+        """The core's light for these settings, or None when it cannot shine (disabled, no image)."""
+        if not self.use:
+            return None
+        if self.kind == "SUN":
+            return lights.Sun(self.sun_direction(), self.sun_angular_radius(), self.rgb())
+        if self.kind == "SKY":
+            return lights.Sky(self.rgb())
+        image = self.environment_image(scene)
+        if image is None:
+            return None
+        matrix = np.array(self.rotation.to_matrix(), dtype=np.float64)
+        return lights.Environment((image.name_full, *image.size), tuple(matrix.ravel()), self.rgb(),
+                                  pixels=lambda: _equirect_pixels(image))
+
+
+def _world_environment_image(world):
+    if world is None or world.node_tree is None:
+        return None
+    for node in world.node_tree.nodes:
+        if node.type == "TEX_ENVIRONMENT" and node.image is not None:
+            return node.image
+    return None
+
+
+def _equirect_pixels(image) -> np.ndarray:
+    """(H, W, 3) float32, row 0 at the bottom (Blender's layout, as the core expects)."""
+    width, height = image.size
+    flat = np.empty(width * height * image.channels, dtype=np.float32)
+    image.pixels.foreach_get(flat)
+    pixels = flat.reshape(height, width, image.channels)
+    return pixels[..., :3] if image.channels >= 3 else np.repeat(pixels[..., :1], 3, axis=2)
+
+
+class PRT_PG_display(bpy.types.PropertyGroup):
+    show_prt: BoolProperty(
+        name="PRT Display", default=False, update=_tag_scene,
+        description="Show the PRT colours through display materials (the scene's own materials are kept "
+                    "and put back when this is off)")
+    use_albedo: BoolProperty(name="Albedo Texture", default=True, update=_tag_scene,
+                             description="Multiply the PRT colour by each material's Base Color texture")
+    window: EnumProperty(name="Window", items=WINDOWS, default="none", update=_tag_scene,
+                         description="Taper high SH bands of the summed light against ringing")
+    show_normals: BoolProperty(name="Normals", description="Draw the vertex normals of baked meshes",
+                               default=False, update=_tag_scene)
+    show_light_directions: BoolProperty(
+        name="Light Directions", description="Draw a line from the 3D cursor towards each sun",
+        default=False, update=_tag_scene)
+
+
+class PRT_UL_lights(bpy.types.UIList):
+    def draw_item(self, context, layout, data, item, icon, active_data, active_property, index=0, flt_flag=0):
+        kind_icon = next(entry[3] for entry in KINDS if entry[0] == item.kind)
+        row = layout.row(align=True)
+        row.prop(item, "name", text="", emboss=False, icon=kind_icon)
+        row.prop(item, "use", text="")
+
+
+class PRT_OT_light_add(bpy.types.Operator):
+    """Add an SH light to the scene"""
+    bl_idname = "prt.light_add"
+    bl_label = "Add SH Light"
+    bl_options = {"REGISTER", "UNDO"}
+
+    kind: EnumProperty(name="Kind", items=KINDS, default="SUN")
+
+    def execute(self, context):
+        scene = context.scene
+        light = scene.prt_lights.add()
+        light.kind = self.kind
+        light.name = next(entry[1] for entry in KINDS if entry[0] == self.kind)
+        scene.prt_active_light = len(scene.prt_lights) - 1
+        return {"FINISHED"}
+
+
+class PRT_OT_light_remove(bpy.types.Operator):
+    """Remove the active SH light"""
+    bl_idname = "prt.light_remove"
+    bl_label = "Remove SH Light"
+    bl_options = {"REGISTER", "UNDO"}
+
+    @classmethod
+    def poll(cls, context):
+        return 0 <= context.scene.prt_active_light < len(context.scene.prt_lights)
+
+    def execute(self, context):
+        scene = context.scene
+        scene.prt_lights.remove(scene.prt_active_light)
+        scene.prt_active_light = min(scene.prt_active_light, len(scene.prt_lights) - 1)
+        scene.update_tag()
+        return {"FINISHED"}
+
+
+class PRT_PT_lights(bpy.types.Panel):
+    """The seed's light driver: a list of lights (its keys 1-8), the active one's θ and φ and settings."""
+    bl_label = "Lights"
+    bl_idname = "PRT_PT_lights"
+    bl_space_type = "VIEW_3D"
+    bl_region_type = "UI"
+    bl_category = "PRT"
+
+    def draw(self, context):
+        layout = self.layout
+        scene = context.scene
+        row = layout.row()
+        row.template_list("PRT_UL_lights", "", scene, "prt_lights", scene, "prt_active_light", rows=3)
+        column = row.column(align=True)
+        column.operator_menu_enum("prt.light_add", "kind", icon="ADD", text="")
+        column.operator("prt.light_remove", icon="REMOVE", text="")
+        if not 0 <= scene.prt_active_light < len(scene.prt_lights):
+            layout.label(text="Add a light to relight the baked meshes", icon="INFO")
+            return
+        layout.use_property_split = True
+        self._draw_light(layout, scene, scene.prt_lights[scene.prt_active_light])
+
+    @staticmethod
+    def _draw_light(layout, scene, light):
+        layout.prop(light, "kind")
+        if light.kind == "SUN":
+            layout.prop(light, "sun_object")
+            column = layout.column(align=True)
+            column.enabled = light.sun_object is None
+            column.prop(light, "theta", slider=True)
+            column.prop(light, "phi", slider=True)
+            column.prop(light, "angular_radius")
+        elif light.kind == "ENVIRONMENT":
+            layout.template_ID(light, "image", open="image.open")
+            if light.environment_image(scene) is None:
+                layout.label(text="No usable image: pick one, or give the World an Environment Texture",
+                             icon="ERROR")
+            layout.prop(light, "rotation")
+        layout.prop(light, "colour")
+        layout.prop(light, "strength")
+
+
+class PRT_PT_display(bpy.types.Panel):
+    """The seed's F1/F2 (own materials or PRT), T (albedo texture), N and L (normals, light directions)."""
+    bl_label = "Display"
+    bl_idname = "PRT_PT_display"
+    bl_space_type = "VIEW_3D"
+    bl_region_type = "UI"
+    bl_category = "PRT"
+    bl_parent_id = "PRT_PT_lights"
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        display = context.scene.prt_display
+        layout.prop(display, "show_prt", toggle=True, icon="SHADING_RENDERED")
+        column = layout.column()
+        column.enabled = display.show_prt
+        column.prop(display, "use_albedo")
+        layout.prop(display, "window")
+        column = layout.column(heading="Overlays")
+        column.prop(display, "show_normals")
+        column.prop(display, "show_light_directions")
+
+
+classes = (PRT_PG_light, PRT_PG_display, PRT_UL_lights, PRT_OT_light_add, PRT_OT_light_remove,
+           PRT_PT_lights, PRT_PT_display)
+
+
+def register():
+    for cls in classes:
+        bpy.utils.register_class(cls)
+    bpy.types.Scene.prt_lights = CollectionProperty(type=PRT_PG_light)
+    bpy.types.Scene.prt_active_light = IntProperty(name="Active SH Light", default=0, min=0)
+    bpy.types.Scene.prt_display = PointerProperty(type=PRT_PG_display)
+
+
+def unregister():
+    del bpy.types.Scene.prt_display
+    del bpy.types.Scene.prt_active_light
+    del bpy.types.Scene.prt_lights
+    for cls in reversed(classes):
+        bpy.utils.unregister_class(cls)
