@@ -5,10 +5,11 @@ Stored layout (documented in the README; bump core.bake.CONVENTION_VERSION when 
   coefficients (k = 3j, 3j+1, 3j+2; the last one zero-padded). The leading `_` lets glTF export them.
 - POINT-domain FLOAT attribute `_prt_error`: per-vertex estimated relative standard error.
 - Mesh custom property `prt` (a group): order, mode, samples, rays, convention, vertex_count,
-  est_rms_rel_error, est_max_rel_error, time_s, date, seed, target_error, skipped_vertices.
+  est_rms_rel_error, est_max_rel_error, time_s, date, bake_id, seed, target_error, skipped_vertices.
 """
 
 from datetime import datetime, timezone
+import uuid
 
 import bpy
 import numpy as np
@@ -253,6 +254,7 @@ def write_transfer(ob, result, summary_fields: dict, settings: bake.BakeSettings
         "est_rms_rel_error": float(np.sqrt(np.mean(np.square(result.rel_error)))),
         "est_max_rel_error": float(result.rel_error.max(initial=0.0)),
         "date": datetime.now(timezone.utc).isoformat(timespec="seconds"),
+        "bake_id": uuid.uuid4().hex,  # tells two bakes apart even within the same second
         **summary_fields,
     }
     mesh.update()

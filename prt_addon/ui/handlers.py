@@ -81,11 +81,11 @@ def _light_relevant(scene, depsgraph) -> bool:
 
 
 def _bake_key(mesh):
-    """What identifies a bake: its metadata's date and duration, and the vertex counts then and now."""
+    """What identifies a bake: its unique id, and the vertex counts then and now."""
     meta = mesh.get(mesh_data.METADATA_KEY)
     if meta is None:
         return None
-    return meta.get("date"), meta.get("time_s"), meta.get("vertex_count"), len(mesh.vertices)
+    return meta.get("bake_id"), meta.get("vertex_count"), len(mesh.vertices)
 
 
 def _bake_changed(mesh) -> bool:
