@@ -119,8 +119,10 @@ def test_workers_give_bit_identical_results():
     receiver = bake.Receiver("w", positions, np.tile([0.0, 0.0, 1.0], (300, 1)), 21)
     settings = bake.BakeSettings(order=4, samples=64, target_error=0.05, max_samples=1024)
     one = job.TransferJob([receiver], disc(1.0, 1.0), settings, workers=1).run()[0]
-    two = job.TransferJob([receiver], disc(1.0, 1.0), settings, workers=2,
-                          worker_command=[sys.executable, "-c"]).run()[0]
+    two_workers = job.TransferJob([receiver], disc(1.0, 1.0), settings, workers=2,
+                                  worker_command=[sys.executable, "-c"])
+    two_workers.min_rays_for_workers = 0  # a job this small would otherwise stay in one process
+    two = two_workers.run()[0]
     np.testing.assert_array_equal(one.transfer, two.transfer)
     np.testing.assert_array_equal(one.std_error, two.std_error)
     np.testing.assert_array_equal(one.rays, two.rays)

@@ -53,8 +53,8 @@ class Summary:
                 f"est. RMS rel. error {self.est_rms_rel_error:.4f}, max {self.est_max_rel_error:.4f}")
 
 
-class Cancelled(Exception):
-    pass
+# Starting a worker costs about a second (importing bpy): below this many rays one process is faster.
+WORKER_MIN_RAYS = 2_000_000
 
 
 class TransferJob:
@@ -67,6 +67,7 @@ class TransferJob:
         self.settings = settings
         self.workers = max(1, int(workers))
         self.worker_command = worker_command
+        self.min_rays_for_workers = WORKER_MIN_RAYS
         self.chunks = bake.chunk_ranges([len(r.positions) for r in receivers])
         self.total_vertices = sum(len(r.positions) for r in receivers)
         self.done_vertices = 0
@@ -87,7 +88,9 @@ class TransferJob:
         if self.finished:
             return True
         if self._runner is None:
-            use_workers = self.workers > 1 and self.settings.mode == "shadowed" and len(self.chunks) > 1
+            use_workers = (self.workers > 1 and self.settings.mode == "shadowed"
+                           and len(self.chunks) >= self.workers
+                           and self.total_vertices * self.settings.samples >= self.min_rays_for_workers)
             self._runner = self._run_workers() if use_workers else self._run_here()
         deadline = time.perf_counter() + budget_s
         while time.perf_counter() < deadline:
@@ -117,63 +120,75 @@ class TransferJob:
         self._std_error[receiver_index][start:stop] = result.std_error
         self._rays[receiver_index][start:stop] = result.rays
         self._skipped[receiver_index][start:stop] = result.skipped
-        self.done_vertices += stop - start
 
     def _run_here(self):
         caster = bake.RayCaster(self.occluders) if self.settings.mode == "shadowed" else None
         yield
-        for chunk_index, (receiver_index, start, stop) in enumerate(self.chunks):
-            work = bake.bake_chunk(caster, self.receivers[receiver_index], start, stop, self.settings)
-            while True:
-                try:
-                    self.rays += next(work)
-                    yield
-                except StopIteration as finished:
-                    self._store(chunk_index, finished.value)
-                    break
-            yield
+        for chunk_index in range(len(self.chunks)):
+            yield from self._bake_chunk_here(caster, chunk_index)
+
+    def _bake_chunk_here(self, caster, chunk_index):
+        receiver_index, start, stop = self.chunks[chunk_index]
+        work = bake.bake_chunk(caster, self.receivers[receiver_index], start, stop, self.settings)
+        while True:
+            try:
+                self.rays += next(work)
+                yield
+            except StopIteration as finished:
+                self._store(chunk_index, finished.value)
+                self.done_vertices += stop - start
+                return
 
     def _run_workers(self):
+        """This process bakes every N-th chunk itself; N-1 worker processes bake the others."""
         with tempfile.TemporaryDirectory(prefix="prt_bake_") as folder:
             job_file = os.path.join(folder, "job.npz")
             save_job(job_file, self.receivers, self.occluders, self.settings)
             processes, lines = [], queue.Queue()
             try:
-                for worker in range(self.workers):
-                    mine = list(range(worker, len(self.chunks), self.workers))
+                for worker in range(1, self.workers):
+                    theirs = list(range(worker, len(self.chunks), self.workers))
                     out_file = os.path.join(folder, f"result_{worker}.npz")
-                    command = worker_process_command(self.worker_command, job_file, out_file, mine)
+                    command = worker_process_command(self.worker_command, job_file, out_file, theirs)
                     process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                                                text=True, env=_worker_environment())
-                    threading.Thread(target=_read_lines, args=(process.stdout, lines, worker),
-                                     daemon=True).start()
-                    processes.append((process, out_file, mine))
+                    threading.Thread(target=_read_lines, args=(process.stdout, lines), daemon=True).start()
+                    processes.append((process, out_file, theirs))
+                caster = bake.RayCaster(self.occluders)
                 running = len(processes)
+                for chunk_index in range(0, len(self.chunks), self.workers):
+                    yield from self._bake_chunk_here(caster, chunk_index)
+                    running -= self._take_progress(lines, wait=0.0)
                 while running:
-                    try:
-                        worker, line = lines.get(timeout=0.05)
-                    except queue.Empty:
-                        yield
-                        continue
-                    if line is None:
-                        running -= 1
-                    elif line.startswith("PRT-PROGRESS "):
-                        vertices, rays = map(int, line.split()[1:3])
-                        self.done_vertices += vertices
-                        self.rays += rays
+                    running -= self._take_progress(lines, wait=0.05)
                     yield
-                self.done_vertices = 0
-                for process, out_file, mine in processes:
+                for process, out_file, theirs in processes:
                     if process.wait() != 0:
                         message = process.stderr.read().strip().splitlines()
                         raise RuntimeError("bake worker failed: " + (message[-1] if message else "no message"))
-                    for chunk_index, result in zip(mine, load_results(out_file)):
+                    for chunk_index, result in zip(theirs, load_results(out_file)):
                         self._store(chunk_index, result)
             finally:
                 for process, _, _ in processes:
                     if process.poll() is None:
                         process.kill()
                         process.wait()
+
+    def _take_progress(self, lines: queue.Queue, wait: float) -> int:
+        """Counts the workers' progress lines; returns how many workers finished."""
+        finished = 0
+        while True:
+            try:
+                line = lines.get(timeout=wait) if wait else lines.get_nowait()
+            except queue.Empty:
+                return finished
+            wait = 0.0
+            if line is None:
+                finished += 1
+            elif line.startswith("PRT-PROGRESS "):
+                vertices, rays = map(int, line.split()[1:3])
+                self.done_vertices += vertices
+                self.rays += rays
 
     # -- results --------------------------------------------------------------------------------------
     def results(self) -> list[ReceiverResult]:
@@ -212,10 +227,10 @@ def _rms(values: np.ndarray) -> float:
     return float(np.sqrt(np.mean(np.square(values)))) if len(values) else 0.0
 
 
-def _read_lines(stream, lines: queue.Queue, worker: int):
+def _read_lines(stream, lines: queue.Queue):
     for line in stream:
-        lines.put((worker, line.strip()))
-    lines.put((worker, None))
+        lines.put(line.strip())
+    lines.put(None)
 
 
 def _worker_environment():
