@@ -3,9 +3,9 @@
 Transfer convention: T_k = (1/π) ∫ V(ω) max(n·ω, 0) Y_k(ω) dω, so radiance = albedo · Σ_k L_k T_k.
 
 Shadowed estimator (what makes it cheap compared with the seed's uniform-sphere Monte Carlo):
-- the unshadowed part is exact (closed form), only the *blocked* light is sampled:
-  T = T_unshadowed − (1/π) ∫ (1 − V) cos Y  ≈  T_unshadowed − mean over cosine-distributed rays of (1 − V)·Y;
-  a vertex that sees nothing costs rays but adds no noise, and one that provably sees nothing casts none;
+- the unshadowed transfer is exact (closed form) and serves as a control variate:
+  T ≈ β·T_unshadowed + mean over cosine-distributed rays of (V − β)·Y, β the vertex's visible fraction, so a
+  vertex that sees the whole sky or none of it adds no noise, and one that provably sees the sky casts no ray;
 - directions are a rank-1 lattice, Cranley-Patterson rotated per vertex and replicate, so R independent
   replicates give an honest standard error;
 - with a target error, rounds double the rays per replicate until each vertex meets the target.
@@ -19,9 +19,9 @@ import zlib
 
 import numpy as np
 
-from . import lobes, sampling, sh
+from . import interreflect, lobes, sampling, sh
 
-MODES = ("unshadowed", "shadowed")
+MODES = ("unshadowed", "shadowed", "interreflected")
 MAX_ORDER = 10
 MIN_SAMPLES = 8
 MAX_SAMPLES = 1 << 20
@@ -38,8 +38,8 @@ CHUNK_VERTICES = 64
 # Ray origins sit this fraction of the scene's diagonal above the surface: scale-free, and far above
 # float32 rounding because the geometry is recentred on the scene's bounding box before the BVH is built.
 OFFSET_FRACTION = 1e-5
-# Version of the stored layout and conventions; bump when either changes (2: surfaces touching a vertex
-# no longer occlude it, as in Cycles).
+# Version of the stored layout and conventions; bump when either changes (2: ray origins also move towards
+# the inside of each vertex's faces, so a vertex on a seam is seen from its own side).
 CONVENTION_VERSION = 2
 
 
@@ -54,6 +54,8 @@ class BakeSettings:
     # honest estimate (benchmarks/bake.py); 2 under-reports.
     replicates: int = 4
     seed: int = 0
+    bounces: int | None = None  # interreflected: a count, or None for 'auto' (until the tail < tolerance)
+    bounce_tolerance: float = 1e-3
 
     def problems(self) -> list[str]:
         """Every reason these settings cannot bake, as sentences for the user."""
@@ -68,6 +70,10 @@ class BakeSettings:
             found.append(f"target error must be a finite number >= 0, not {self.target_error}")
         if self.max_samples < self.samples:
             found.append(f"max samples ({self.max_samples}) must be at least samples ({self.samples})")
+        if self.bounces is not None and not 0 <= self.bounces <= 1000:
+            found.append(f"bounces must be 0-1000 or auto, not {self.bounces}")
+        if not 0.0 < self.bounce_tolerance < 1.0:
+            found.append(f"bounce tolerance must be between 0 and 1, not {self.bounce_tolerance}")
         most_replicates = min(MAX_REPLICATES, max(self.samples, MIN_SAMPLES))  # each replicate needs a ray
         if not 2 <= self.replicates <= most_replicates:
             found.append(f"replicates must be 2-{most_replicates}, not {self.replicates}")
@@ -120,6 +126,7 @@ class ChunkResult:
     std_error: np.ndarray  # (c,) norm of the coefficients' standard error
     rays: np.ndarray       # (c,) rays cast per vertex
     skipped: np.ndarray    # (c,) bool: provably unoccluded, no rays
+    records: interreflect.HitRecords | None = None  # interreflected mode: blocked rays' hits (chunk-local rows)
 
 
 def unshadowed_transfer(order: int, normals: np.ndarray) -> np.ndarray:
@@ -154,28 +161,35 @@ class RayCaster:
         self.offset = OFFSET_FRACTION * occluders.diagonal
         self.max_distance = 2.0 * occluders.diagonal
         self.hull = occluders.hull - self.center
-        local = occluders.vertices - self.center
-        self.tree = BVHTree.FromPolygons(local.tolist(), occluders.triangles.tolist(), all_triangles=True)
+        self.vertices = occluders.vertices - self.center
+        self.triangles = occluders.triangles
+        self.tree = BVHTree.FromPolygons(self.vertices.tolist(), self.triangles.tolist(), all_triangles=True)
 
-    def occluded(self, origins: np.ndarray, directions: np.ndarray) -> np.ndarray:
-        """origins (c, 3), directions (c, k, 3) → (c, k) bool: did the ray hit anything.
+    def occluded(self, origins: np.ndarray, directions: np.ndarray, hits: bool = False):
+        """origins (c, 3), directions (c, k, 3) → (c, k) bool: did the ray hit anything; with `hits`, also the
+        hit triangles (−1 for none) and distances."""
+        distance, triangle = self._cast(map(tuple, origins.tolist()), directions, hits)
+        occluded = ~np.isnan(distance)
+        return (occluded, np.where(occluded, triangle, -1), distance) if hits else occluded
 
-        A hit closer than the origin offset is a surface passing through the vertex itself (a floor vertex on
-        the line where a wall stands): like Cycles, the ray goes on past it instead of counting it."""
-        hit_distance = self._cast(map(tuple, origins.tolist()), directions)
-        touching = np.nonzero(hit_distance < self.offset)  # NaN (a miss) compares False
-        if len(touching[0]):
-            beyond = origins[touching[0]] + 2.0 * self.offset * directions[touching]
-            hit_distance[touching] = self._cast(map(tuple, beyond.tolist()), directions[touching][:, None, :])[:, 0]
-        return ~np.isnan(hit_distance)
-
-    def _cast(self, origins, directions: np.ndarray) -> np.ndarray:
-        """Hit distances (NaN for a miss) of directions (c, k, 3) from c origins, looped in C by map()."""
+    def _cast(self, origins, directions: np.ndarray, with_triangles: bool):
+        """Hit distances (NaN for a miss), and triangles if asked, of directions (c, k, 3) from c origins,
+        looped in C by map()."""
         c, k = directions.shape[:2]
         xs, ys, zs = directions.reshape(-1, 3).T.tolist()
         per_ray_origins = chain.from_iterable(repeat(origin, k) for origin in origins)
         casts = map(self.tree.ray_cast, per_ray_origins, zip(xs, ys, zs), repeat(self.max_distance))
-        return np.array(list(map(itemgetter(3), casts)), dtype=np.float64).reshape(c, k)
+        if not with_triangles:
+            return np.array(list(map(itemgetter(3), casts)), dtype=np.float64).reshape(c, k), None
+        found = np.array(list(map(itemgetter(2, 3), casts)), dtype=np.float64).reshape(c, k, 2)
+        return found[..., 1], np.nan_to_num(found[..., 0], nan=-1.0).astype(np.int64)
+
+    def front_hits(self, origins, directions, triangle, distance):
+        """(barycentric (H, 3), front (H,) bool) for hits: the light leaving a surface is known on its front."""
+        corners = self.vertices[self.triangles[triangle]]
+        points = origins + distance[:, None] * directions
+        normals = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+        return interreflect.barycentric(points, corners), np.einsum("ij,ij->i", normals, directions) < 0
 
 
 def shadowed_chunk(caster: RayCaster, positions, normals, inward, keys, settings: BakeSettings):
@@ -190,15 +204,19 @@ def shadowed_chunk(caster: RayCaster, positions, normals, inward, keys, settings
     tangents, bitangents = sampling.orthonormal_basis(np.where(has_surface[:, None], normals, [0.0, 0.0, 1.0]))
     frames = np.stack([tangents, bitangents, normals], axis=1)
     origins = positions + caster.offset * (normals + inward)
-    rounds = []  # (vertices, rays per vertex, blocked mean, blocked variance), combined below
+    rounds = []  # (vertices, rays per vertex, transfer mean, transfer variance), combined below
+    hits = [] if settings.mode == "interreflected" else None  # (chunk vertex, triangle, barycentric) per round
     groups = [(settings.points_per_replicate, np.flatnonzero(has_surface & ~skipped))]
     round_index = 0
     for _ in range(MAX_ROUNDS):
         for per_replicate, vertices in groups:
             if not len(vertices):
                 continue
-            mean, variance = _blocked_round(caster, origins[vertices], frames[vertices], keys[vertices],
-                                            round_index, per_replicate, settings)
+            mean, variance, round_hits = _blocked_round(caster, origins[vertices], frames[vertices],
+                                                        unshadowed[vertices], keys[vertices], round_index,
+                                                        per_replicate, settings)
+            if hits is not None:
+                hits.append((vertices[round_hits[0]], *round_hits[1:]))
             rounds.append((vertices, replicates * per_replicate, mean, variance))
             rays[vertices] += replicates * per_replicate
             round_index += 1
@@ -209,8 +227,19 @@ def shadowed_chunk(caster: RayCaster, positions, normals, inward, keys, settings
         groups = _next_rounds(error, rays, settings)
         if not groups:
             break
-    blocked, error = _combine(rounds, rays, count, order)
-    return ChunkResult(unshadowed - blocked, error, rays, skipped)
+    transfer, error = _combine(rounds, rays, count, order)
+    transfer[rays == 0] = unshadowed[rays == 0]  # exact: provably unoccluded, or no surface (zero)
+    return ChunkResult(transfer, error, rays, skipped, _records(hits, rays))
+
+
+def _records(hits, rays):
+    """Every ray of a vertex carries the same weight in its estimate, rounds included: 1 / its rays."""
+    if hits is None:
+        return None
+    if not hits:
+        return interreflect.HitRecords.empty()
+    vertex, triangle, barycentric = (np.concatenate(part) for part in zip(*hits))
+    return interreflect.HitRecords(vertex, triangle, barycentric, 1.0 / rays[vertex])
 
 
 def _next_rounds(error, rays, settings: BakeSettings):
@@ -238,17 +267,22 @@ def _next_rounds(error, rays, settings: BakeSettings):
 
 def _combine(rounds, rays, count, order):
     """Weights rounds by their share of each vertex's rays: unbiased, optimal at the Monte Carlo rate."""
-    blocked = np.zeros((count, order * order))
+    estimate = np.zeros((count, order * order))
     variance = np.zeros((count, order * order))
     for vertices, round_rays, mean, var in rounds:
         weight = (round_rays / rays[vertices])[:, None]
-        blocked[vertices] += weight * mean
+        estimate[vertices] += weight * mean
         variance[vertices] += weight * weight * var
-    return blocked, np.sqrt(variance.sum(1))
+    return estimate, np.sqrt(variance.sum(1))
 
 
-def _blocked_round(caster, origins, frames, keys, round_index, per_replicate, settings):
-    """One round: R replicates of a shifted lattice per vertex; mean and variance of (1/π)∫(1−V)cos·Y."""
+def _blocked_round(caster, origins, frames, unshadowed, keys, round_index, per_replicate, settings):
+    """One round: R replicates of a shifted lattice per vertex. Returns the mean and variance over replicates
+    of the transfer estimate, and the hits (interreflected mode).
+
+    Each replicate estimates T = β·T_unshadowed + mean((V − β)·Y), a control variate whose coefficient β is
+    the vertex's visible fraction this round: β = 1 samples only blocked light (exact for an open vertex),
+    β = 0 only visible light (exact for a buried one), in between it tracks the optimal coefficient."""
     replicates, order = settings.replicates, settings.order
     c, rays = len(keys), replicates * per_replicate
     stream = keys[:, None] * STREAMS_PER_VERTEX + round_index * replicates + np.arange(replicates)[None, :]
@@ -256,16 +290,38 @@ def _blocked_round(caster, origins, frames, keys, round_index, per_replicate, se
     local = sampling.square_to_cosine_hemisphere(
         sampling.cranley_patterson(sampling.fibonacci_lattice(per_replicate), shifts))  # (c, R, k, 3)
     world = local.reshape(c, rays, 3) @ frames  # rows of each frame: tangent, bitangent, normal
-    blocked_rays = np.flatnonzero(caster.occluded(origins, world))
-    sums = np.zeros((c * replicates, order * order))
-    if len(blocked_rays):
-        # Blocked rays arrive sorted, so each (vertex, replicate) is one contiguous segment to sum.
-        replicate_of_ray = blocked_rays // per_replicate
-        starts = np.flatnonzero(np.diff(replicate_of_ray, prepend=-1))
-        basis = sh.evaluate(order, world.reshape(-1, 3)[blocked_rays])
-        sums[replicate_of_ray[starts]] = np.add.reduceat(basis, starts, axis=0)
-    per_replicate_blocked = sums.reshape(c, replicates, order * order) / per_replicate
-    return per_replicate_blocked.mean(1), per_replicate_blocked.var(1, ddof=1) / replicates
+    if settings.mode == "interreflected":
+        occluded, triangle, distance = caster.occluded(origins, world, hits=True)
+        round_hits = _round_hits(caster, origins, world, occluded, triangle, distance)
+    else:
+        occluded, round_hits = caster.occluded(origins, world), None
+    all_rays, blocked = _replicate_means(world, occluded, order, replicates)
+    beta = 1.0 - occluded.mean(axis=1)[:, None, None]
+    estimate = beta * unshadowed[:, None, :] + (1.0 - beta) * all_rays - blocked  # (c, R, n²)
+    return estimate.mean(1), estimate.var(1, ddof=1) / replicates, round_hits
+
+
+def _replicate_means(world, occluded, order, replicates, values_at_once=1 << 22):
+    """Per vertex and replicate: mean of Y over all rays and of (1 − V)·Y, a few vertices at a time so memory
+    stays bounded at high orders and ray counts."""
+    c, rays = occluded.shape
+    all_rays = np.empty((c, replicates, order * order))
+    blocked = np.empty_like(all_rays)
+    step = max(1, values_at_once // (rays * order * order))
+    for first in range(0, c, step):
+        part = slice(first, first + step)
+        basis = sh.evaluate(order, world[part]).reshape(-1, replicates, rays // replicates, order * order)
+        hit = occluded[part].reshape(-1, replicates, rays // replicates, 1)
+        all_rays[part] = basis.mean(2)
+        blocked[part] = (basis * hit).mean(2)
+    return all_rays, blocked
+
+
+def _round_hits(caster, origins, world, occluded, triangle, distance):
+    """(vertex row, triangle, barycentric) of the blocked rays that hit a front face."""
+    row, ray = np.nonzero(occluded)
+    barycentric, front = caster.front_hits(origins[row], world[row, ray], triangle[row, ray], distance[row, ray])
+    return row[front], triangle[row, ray][front], barycentric[front]
 
 
 def vertex_keys(receiver: Receiver, start: int, stop: int) -> np.ndarray:

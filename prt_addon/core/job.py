@@ -16,13 +16,13 @@ import time
 
 import numpy as np
 
-from . import bake
+from . import bake, interreflect
 from .progress import Progress
 
 
 @dataclass
 class ReceiverResult:
-    transfer: np.ndarray    # (V, n²) float32
+    transfer: np.ndarray    # (V, n²) float32, or (V, 3, n²) for coloured interreflections
     std_error: np.ndarray   # (V,) norm of the standard error of the coefficients
     rel_error: np.ndarray   # (V,) std_error ÷ norm of the unshadowed transfer (0 without a surface)
     rays: np.ndarray        # (V,) int64
@@ -45,12 +45,19 @@ class Summary:
     workers: int = 1
     target_error: float = 0.0
     per_object: dict = field(default_factory=dict)
+    phases: dict = field(default_factory=dict)     # seconds per phase: rays, gather setup, bounces
+    bounces: int | None = None                     # interreflected: bounces run
+    bounce_changes: list = field(default_factory=list)  # relative change of each bounce
+    bounce_tail: float = 0.0                       # geometric tail added after the last bounce (auto)
+    albedo_clamped: bool = False
 
     def line(self) -> str:
+        bounced = (f", {self.bounces} bounces in {self.phases.get('bounces_s', 0.0):.2f} s "
+                   f"(last change {self.bounce_changes[-1]:.1e})" if self.bounce_changes else "")
         return (f"PRT bake: {self.objects} objects, {self.vertices} vertices, order {self.order} {self.mode}: "
                 f"{self.time_s:.2f} s, {self.rays} rays, {self.rays_per_s / 1e3:.0f} k rays/s, "
                 f"{self.skipped_vertices} vertices exact without rays, "
-                f"est. RMS rel. error {self.est_rms_rel_error:.4f}, max {self.est_max_rel_error:.4f}")
+                f"est. RMS rel. error {self.est_rms_rel_error:.4f}, max {self.est_max_rel_error:.4f}{bounced}")
 
 
 # Starting a worker costs about a second (importing bpy): below this many rays one process is faster.
@@ -61,7 +68,9 @@ class TransferJob:
     """Bakes every receiver. Call step() until it returns True, or run() to do it all at once."""
 
     def __init__(self, receivers, occluders, settings: bake.BakeSettings, workers: int = 1,
-                 worker_command=None):
+                 worker_command=None, albedo=None):
+        """Interreflected bakes need `albedo`, one (V, C) array per receiver, and occluders whose first
+        vertices are the receivers' vertices in order (so a hit triangle's corners are solved vertices)."""
         self.receivers = receivers
         self.occluders = occluders
         self.settings = settings
@@ -70,6 +79,7 @@ class TransferJob:
         self.min_rays_for_workers = WORKER_MIN_RAYS
         self.chunks = bake.chunk_ranges([len(r.positions) for r in receivers])
         self.total_vertices = sum(len(r.positions) for r in receivers)
+        self._vertex_offsets = np.cumsum([0] + [len(r.positions) for r in receivers])
         self.done_vertices = 0
         self.rays = 0
         self.progress = Progress("PRT bake")
@@ -79,6 +89,10 @@ class TransferJob:
         self._std_error = [np.zeros(len(r.positions)) for r in receivers]
         self._rays = [np.zeros(len(r.positions), dtype=np.int64) for r in receivers]
         self._skipped = [np.zeros(len(r.positions), dtype=bool) for r in receivers]
+        self.records = []  # interreflected: HitRecords per chunk, rows already global
+        self.albedo = albedo
+        self.bounce_report = None
+        self.phase_times = {}
         self._runner = None
         self.finished = False
 
@@ -88,13 +102,16 @@ class TransferJob:
         if self.finished:
             return True
         if self._runner is None:
-            use_workers = (self.workers > 1 and self.settings.mode == "shadowed"
+            use_workers = (self.workers > 1 and self.settings.mode != "unshadowed"
                            and len(self.chunks) >= self.workers
                            and self.total_vertices * self.settings.samples >= self.min_rays_for_workers)
             self._runner = self._run_workers() if use_workers else self._run_here()
         deadline = time.perf_counter() + budget_s
         while time.perf_counter() < deadline:
             if next(self._runner, StopIteration) is StopIteration:
+                self.phase_times["rays_s"] = self.progress.elapsed
+                if self.settings.mode == "interreflected":
+                    self._bounce()
                 self.finished = True
                 break
         self.progress.fraction = self.done_vertices / max(1, self.total_vertices)
@@ -120,9 +137,13 @@ class TransferJob:
         self._std_error[receiver_index][start:stop] = result.std_error
         self._rays[receiver_index][start:stop] = result.rays
         self._skipped[receiver_index][start:stop] = result.skipped
+        if result.records is not None:
+            offset = self._vertex_offsets[receiver_index] + start
+            self.records.append(interreflect.HitRecords(result.records.vertex + offset, result.records.triangle,
+                                                         result.records.barycentric, result.records.weight))
 
     def _run_here(self):
-        caster = bake.RayCaster(self.occluders) if self.settings.mode == "shadowed" else None
+        caster = bake.RayCaster(self.occluders) if self.settings.mode != "unshadowed" else None
         yield
         for chunk_index in range(len(self.chunks)):
             yield from self._bake_chunk_here(caster, chunk_index)
@@ -190,13 +211,28 @@ class TransferJob:
                 self.done_vertices += vertices
                 self.rays += rays
 
+    def _bounce(self):
+        """Interreflections from the recorded hits: T_total = Σ_b (G ρ)^b T_direct, no new rays."""
+        start = time.perf_counter()
+        records = interreflect.HitRecords.concatenate(self.records)
+        operator = interreflect.bounce_operator(records, self.occluders.triangles, self.total_vertices)
+        self.phase_times["gather_setup_s"] = time.perf_counter() - start
+        direct = np.concatenate(self._transfer).astype(np.float64)
+        total, self.bounce_report = interreflect.interreflect(
+            direct, np.concatenate(self.albedo), operator, self.settings.bounces, self.settings.bounce_tolerance)
+        self.phase_times["bounces_s"] = self.bounce_report.time_s
+        self._transfer = np.split(total.astype(np.float32), self._vertex_offsets[1:-1])
+
     # -- results --------------------------------------------------------------------------------------
     def results(self) -> list[ReceiverResult]:
         out = []
         scale = bake.unshadowed_norm(self.settings.order)
         for index, receiver in enumerate(self.receivers):
             rel_error = self._std_error[index] / scale
-            out.append(ReceiverResult(self._transfer[index], self._std_error[index], rel_error,
+            transfer = self._transfer[index]
+            if transfer.ndim == 3 and transfer.shape[1] == 1:
+                transfer = transfer[:, 0]  # grey: one channel, stored as (V, n²)
+            out.append(ReceiverResult(transfer, self._std_error[index], rel_error,
                                       self._rays[index], self._skipped[index]))
         return out
 
@@ -220,7 +256,12 @@ class TransferJob:
             skipped_vertices=int(sum(int(r.skipped.sum()) for r in results)),
             time_s=elapsed, rays_per_s=rays / elapsed if elapsed > 0 else 0.0,
             est_rms_rel_error=_rms(rel), est_max_rel_error=float(rel.max(initial=0.0)),
-            workers=self.workers, target_error=self.settings.target_error, per_object=per_object)
+            workers=self.workers, target_error=self.settings.target_error, per_object=per_object,
+            phases=dict(self.phase_times),
+            bounces=self.bounce_report.bounces if self.bounce_report else None,
+            bounce_changes=list(self.bounce_report.relative_changes) if self.bounce_report else [],
+            bounce_tail=self.bounce_report.tail if self.bounce_report else 0.0,
+            albedo_clamped=bool(self.bounce_report and self.bounce_report.albedo_clamped))
 
 
 def _rms(values: np.ndarray) -> float:
@@ -279,8 +320,15 @@ def load_job(path):
 def load_results(path) -> list[bake.ChunkResult]:
     with np.load(path) as data:
         return [bake.ChunkResult(data[f"transfer_{i}"], data[f"std_error_{i}"], data[f"rays_{i}"],
-                                 data[f"skipped_{i}"])
+                                 data[f"skipped_{i}"], _load_records(data, i))
                 for i in range(int(data["count"]))]
+
+
+def _load_records(data, slot):
+    if f"records_vertex_{slot}" not in data:
+        return None
+    return interreflect.HitRecords(*(data[f"records_{name}_{slot}"]
+                                     for name in ("vertex", "triangle", "barycentric", "weight")))
 
 
 def worker_main(job_file, out_file, chunk_indices):
@@ -301,6 +349,9 @@ def worker_main(job_file, out_file, chunk_indices):
                 break
         for name in ("transfer", "std_error", "rays", "skipped"):
             arrays[f"{name}_{slot}"] = getattr(result, name)
+        if result.records is not None:
+            for name in ("vertex", "triangle", "barycentric", "weight"):
+                arrays[f"records_{name}_{slot}"] = getattr(result.records, name)
         print(f"PRT-PROGRESS {stop - start} {rays}", flush=True)
     np.savez(out_file, **arrays)
     sys.stdout.flush()

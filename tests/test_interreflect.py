@@ -1,0 +1,129 @@
+"""Interreflections gathered over the shadow pass's hits: the stiff closed box and colour bleeding."""
+
+import bpy  # noqa: F401  (mathutils comes with bpy)
+import numpy as np
+import pytest
+
+from prt_addon.core import bake, interreflect, job
+
+
+def closed_box(cuts=4, size=2.0):
+    """A cube of (6 × cuts²) quads facing inwards, vertices shared along edges, as one receiver + occluder."""
+    ticks = np.linspace(-size / 2, size / 2, cuts + 1)
+    points, quads = {}, []
+
+    def index(p):
+        key = tuple(np.round(p, 9))
+        if key not in points:
+            points[key] = len(points)
+        return points[key]
+
+    for axis in range(3):
+        for side in (-1.0, 1.0):
+            u_axis, v_axis = [a for a in range(3) if a != axis]
+            for i in range(cuts):
+                for j in range(cuts):
+                    corners = []
+                    for du, dv in ((0, 0), (1, 0), (1, 1), (0, 1)):
+                        p = np.zeros(3)
+                        p[axis], p[u_axis], p[v_axis] = side * size / 2, ticks[i + du], ticks[j + dv]
+                        corners.append(index(p))
+                    # wind so the face normal points into the box
+                    normal_out = np.zeros(3)
+                    normal_out[axis] = side
+                    a, b, c = (np.array(list(points)[k]) for k in corners[:3])
+                    if np.dot(np.cross(b - a, c - a), normal_out) > 0:
+                        corners.reverse()
+                    quads.append(corners)
+    vertices = np.array(list(points))
+    triangles = np.array([[q[0], q[1], q[2]] for q in quads] + [[q[0], q[2], q[3]] for q in quads])
+    normals = np.zeros_like(vertices)
+    for t in triangles:
+        a, b, c = vertices[t]
+        normals[t] += np.cross(b - a, c - a)
+    normals /= np.linalg.norm(normals, axis=1, keepdims=True)
+    return vertices, triangles, normals
+
+
+def interreflected_job(vertices, triangles, normals, albedo, **settings):
+    receiver = bake.Receiver("box", vertices, normals, 9)
+    occluders = bake.Occluders(vertices, triangles, vertices.copy())
+    the_job = job.TransferJob([receiver], occluders, bake.BakeSettings(mode="interreflected", **settings),
+                              albedo=[albedo])
+    return the_job, the_job.run()
+
+
+@pytest.mark.parametrize("albedo", [0.95, 0.99])
+def test_closed_box_sums_the_neumann_series_exactly(albedo):
+    """Inside a closed box every ray hits a front face, so each row of G sums to 1 and (ρG)^b keeps a
+    constant: a constant direct transfer c must total c / (1 − ρ), with no Monte Carlo error at all."""
+    vertices, triangles, normals = closed_box()
+    the_job, (result,) = interreflected_job(vertices, triangles, normals, np.full((len(vertices), 1), albedo),
+                                            order=2, samples=64)
+    np.testing.assert_allclose(result.transfer, 0.0, atol=1e-12)  # no sky is visible from inside
+    records = interreflect.HitRecords.concatenate(the_job.records)
+    operator = interreflect.bounce_operator(records, triangles, len(vertices))
+    np.testing.assert_allclose(np.bincount(operator.rows, operator.values, len(vertices)), 1.0, atol=1e-12)
+    direct = np.zeros((len(vertices), 4))
+    direct[:, 0] = 0.25
+    total, report = interreflect.interreflect(direct, np.full((len(vertices), 1), albedo), operator,
+                                              tolerance=1e-4)
+    assert np.isfinite(total).all() and report.converged
+    np.testing.assert_allclose(total[:, 0, 0], 0.25 / (1 - albedo), rtol=1e-4)
+    np.testing.assert_allclose(total[:, 0, 1:], 0.0, atol=1e-12)
+    assert 1 <= report.bounces < 200  # the geometric tail makes even ρ = 0.99 quick
+
+
+def test_auto_bounces_match_many_fixed_bounces_on_a_non_constant_transfer():
+    vertices, triangles, normals = closed_box(cuts=3)
+    the_job, _ = interreflected_job(vertices, triangles, normals, np.full((len(vertices), 1), 0.9),
+                                    order=3, samples=64)
+    operator = interreflect.bounce_operator(interreflect.HitRecords.concatenate(the_job.records), triangles,
+                                            len(vertices))
+    direct = bake.unshadowed_transfer(3, normals)  # any non-constant start
+    albedo = np.full((len(vertices), 1), 0.9)
+    auto, report = interreflect.interreflect(direct, albedo, operator, tolerance=1e-6)
+    many, _ = interreflect.interreflect(direct, albedo, operator, bounces=600)
+    assert report.bounces < 600
+    np.testing.assert_allclose(auto, many, atol=1e-5 * np.abs(many).max())
+
+
+def test_albedo_one_stays_bounded():
+    vertices, triangles, normals = closed_box(cuts=2)
+    the_job, _ = interreflected_job(vertices, triangles, normals, np.ones((len(vertices), 1)), order=2, samples=32)
+    operator = interreflect.bounce_operator(interreflect.HitRecords.concatenate(the_job.records), triangles,
+                                            len(vertices))
+    direct = np.zeros((len(vertices), 4))
+    direct[:, 0] = 1.0
+    total, report = interreflect.interreflect(direct, np.ones((len(vertices), 1)), operator, tolerance=1e-4)
+    assert report.albedo_clamped and np.isfinite(total).all()
+    np.testing.assert_allclose(total[:, 0, 0], 1 / (1 - interreflect.MAX_ALBEDO), rtol=1e-3)
+
+
+def test_white_floor_turns_red_beside_a_red_wall():
+    """A floor with a red wall standing on one side: floor vertices near the wall gather red light."""
+    ticks = np.linspace(-1.0, 1.0, 11)
+    floor = np.array([(x, y, 0.0) for y in ticks for x in ticks])
+    wall = np.array([(1.0, y, z) for z in ticks[5:] + 1.0 for y in ticks])  # x = 1, z in [1, 2]... see below
+    wall = np.array([(1.0, y, z) for z in np.linspace(0.0, 2.0, 11) for y in ticks])
+    quads_floor = [(r * 11 + c, r * 11 + c + 1, (r + 1) * 11 + c + 1, (r + 1) * 11 + c) for r in range(10)
+                   for c in range(10)]
+    quads_wall = [(121 + r * 11 + c + 1, 121 + r * 11 + c, 121 + (r + 1) * 11 + c, 121 + (r + 1) * 11 + c + 1)
+                  for r in range(10) for c in range(10)]  # facing −X, into the room
+    vertices = np.vstack([floor, wall])
+    quads = quads_floor + quads_wall
+    triangles = np.array([[q[0], q[1], q[2]] for q in quads] + [[q[0], q[2], q[3]] for q in quads])
+    normals = np.vstack([np.tile([0.0, 0.0, 1.0], (121, 1)), np.tile([-1.0, 0.0, 0.0], (121, 1))])
+    albedo = np.vstack([np.tile([0.8, 0.8, 0.8], (121, 1)), np.tile([0.8, 0.05, 0.05], (121, 1))])
+    receiver = bake.Receiver("room", vertices, normals, 4)
+    the_job = job.TransferJob([receiver], bake.Occluders(vertices, triangles, vertices.copy()),
+                              bake.BakeSettings(mode="interreflected", order=3, samples=256, bounces=3),
+                              albedo=[albedo])
+    (result,) = the_job.run()
+    assert result.transfer.shape == (242, 3, 9)
+    near, far = 5 * 11 + 9, 5 * 11 + 0  # floor vertices at x = 0.8 and x = −1
+    red_over_green = result.transfer[:, 0, 0] / result.transfer[:, 1, 0]
+    assert red_over_green[near] > 1.05 and red_over_green[near] > red_over_green[far] + 0.03
+    summary = the_job.summary([result])
+    assert summary.bounces == 3 and len(summary.bounce_changes) == 3
+    assert summary.bounce_changes[0] > summary.bounce_changes[1] > summary.bounce_changes[2] > 0
