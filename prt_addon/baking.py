@@ -6,6 +6,7 @@ Nothing is written until every receiver is baked: a cancelled or failed bake lea
 import sys
 
 import bpy
+import numpy as np
 
 from . import mesh_data
 from .core import bake, job
@@ -16,6 +17,12 @@ def worker_python_prefix() -> list[str]:
     if bpy.app.binary_path:
         return [bpy.app.binary_path, "--background", "--factory-startup", "--python-expr"]
     return [sys.executable, "-c"]
+
+
+def _albedo_channels(albedos):
+    """One channel when every surface is grey (transfer stays single-channel), else RGB."""
+    grey = all(np.allclose(a, a[:, :1]) for a in albedos)
+    return [a[:, :1] if grey else a for a in albedos]
 
 
 class SceneBake:
@@ -31,29 +38,45 @@ class SceneBake:
         self.notes: list[str] = []     # baked, but the user should know
         depsgraph = context.evaluated_depsgraph_get()
         candidates = mesh_data.receivers_from_selection(context, object_names)
-        self.objects, receivers, meshes = [], [], {}
+        bouncing = settings.mode == "interreflected"
+        self.objects, surfaces, meshes = [], [], {}
         for ob in candidates:
             try:
                 if ob.type == "MESH" and ob.data.name in meshes:
                     raise mesh_data.InputError(
                         f"{ob.name!r} shares its mesh with {meshes[ob.data.name]!r}, and the bake depends on "
                         f"where each object is; make it single-user (Object > Relations) to bake both")
-                receivers.append(mesh_data.receiver_from_object(ob, depsgraph, self.notes))
+                surfaces.append(mesh_data.surface_from_object(ob, depsgraph, self.notes, albedo=bouncing))
                 meshes[ob.data.name] = ob.name
                 self.objects.append(ob)
             except mesh_data.InputError as problem:
                 self.problems.append(str(problem))
-        if not receivers:
+        if not surfaces:
             raise mesh_data.InputError("nothing to bake: " + ("; ".join(self.problems) or "no mesh objects"))
+        if bouncing:  # every visible mesh reflects light onto the receivers, so its transfer is solved too
+            surfaces += self._bouncing_surfaces(context, depsgraph, {ob.name for ob in self.objects})
         occluders = None
-        if settings.mode == "shadowed":
-            occluders, sources = mesh_data.occluders_from_depsgraph(depsgraph, self.objects)
+        if settings.mode != "unshadowed":
+            occluders, sources = mesh_data.occluders_from_depsgraph(depsgraph, surfaces)
             if sources <= {ob.name for ob in self.objects}:
                 self.notes.append("no visible mesh besides the receivers casts shadows; "
                                   "each receiver is shadowed by the receivers only")
-        self.receivers = receivers
-        self.job = job.TransferJob(receivers, occluders, settings, workers, worker_python_prefix())
+        self.receivers = [surface.receiver for surface in surfaces]
+        self.job = job.TransferJob(self.receivers, occluders, settings, workers, worker_python_prefix(),
+                                   albedo=_albedo_channels([s.albedo for s in surfaces]) if bouncing else None)
         self.summary = None
+
+    def _bouncing_surfaces(self, context, depsgraph, receiver_names):
+        found = []
+        for ob in mesh_data.visible_mesh_objects(context):
+            if ob.name in receiver_names:
+                continue
+            try:
+                found.append(mesh_data.surface_from_object(ob, depsgraph, self.notes, for_storage=False,
+                                                           albedo=True))
+            except mesh_data.InputError as problem:
+                self.notes.append(f"{problem}; it casts shadows but reflects no light")
+        return found
 
     @property
     def progress(self):
@@ -78,10 +101,13 @@ class SceneBake:
 
     def store(self) -> job.Summary:
         """Writes every receiver's transfer (replacing older bakes) and returns the summary."""
-        results = self.job.results()
+        results = self.job.results()[: len(self.objects)]  # the rest only reflected light onto these
         self.summary = self.job.summary(results)
         for ob, result in zip(self.objects, results):
-            mesh_data.write_transfer(ob, result, {"time_s": self.summary.time_s}, self.settings)
+            extra = {"time_s": self.summary.time_s}
+            if self.summary.bounces is not None:
+                extra["bounces"] = self.summary.bounces
+            mesh_data.write_transfer(ob, result, extra, self.settings)
         return self.summary
 
     def report_dict(self) -> dict:
@@ -92,4 +118,6 @@ class SceneBake:
             "rays": s.rays, "skipped_vertices": s.skipped_vertices, "time_s": s.time_s,
             "rays_per_s": s.rays_per_s, "est_rms_rel_error": s.est_rms_rel_error,
             "est_max_rel_error": s.est_max_rel_error, "per_object": s.per_object, "problems": self.problems, "notes": self.notes,
+            "phases_s": s.phases, "bounces": s.bounces, "bounce_relative_changes": s.bounce_changes,
+            "bounce_tail": s.bounce_tail, "albedo_clamped": s.albedo_clamped,
         }

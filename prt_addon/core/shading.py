@@ -23,5 +23,13 @@ def sun_coefficients(order: int, direction, angular_radius: float, irradiance: f
 
 
 def shade(transfer: np.ndarray, light: np.ndarray) -> np.ndarray:
-    """transfer (V, n²), light (channels, n²) → radiance (V, channels) as contiguous float32."""
-    return np.ascontiguousarray(transfer @ np.asarray(light, dtype=transfer.dtype).T, dtype=np.float32)
+    """Radiance (V, channels) as contiguous float32 for light (channels, n²) and transfer (V, n²) (grey: every
+    light channel meets the same transfer) or (V, C, n²) (coloured: light channel c meets transfer channel c;
+    light channels beyond C come out zero)."""
+    light = np.asarray(light, dtype=transfer.dtype)
+    if transfer.ndim == 2:
+        return np.ascontiguousarray(transfer @ light.T, dtype=np.float32)
+    radiance = np.zeros((len(transfer), len(light)), dtype=np.float32)
+    channels = transfer.shape[1]
+    radiance[:, :channels] = np.einsum("vck,ck->vc", transfer, light[:channels])
+    return radiance

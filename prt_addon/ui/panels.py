@@ -20,7 +20,7 @@ class PRT_PT_bake(bpy.types.Panel):
         layout.prop(settings, "mode")
         layout.prop(settings, "order")
         column = layout.column()
-        column.enabled = settings.mode == "shadowed"
+        column.enabled = settings.mode != "unshadowed"
         column.prop(settings, "samples")
         column.prop(settings, "target_error")
         sub = column.column()
@@ -28,6 +28,10 @@ class PRT_PT_bake(bpy.types.Panel):
         sub.prop(settings, "max_samples")
         column.prop(settings, "workers")
         column.prop(settings, "seed")
+        if settings.mode == "interreflected":
+            bounce = layout.column()
+            bounce.prop(settings, "auto_bounces")
+            bounce.prop(settings, "bounce_tolerance" if settings.auto_bounces else "bounces")
         status = context.window_manager.prt_bake_status
         if status.running:
             layout.progress(factor=status.fraction, type="BAR", text=status.text)

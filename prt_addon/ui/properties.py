@@ -12,6 +12,8 @@ class PRT_PG_bake_settings(bpy.types.PropertyGroup):
         items=[
             ("unshadowed", "Unshadowed", "Cosine term only: exact, instant, no rays"),
             ("shadowed", "Shadowed", "Cosine term and visibility from ray casts: soft shadows"),
+            ("interreflected", "Interreflected",
+             "Shadows plus light bounced between surfaces, coloured by their albedo (no extra rays)"),
         ],
         default="shadowed",
     )
@@ -28,10 +30,17 @@ class PRT_PG_bake_settings(bpy.types.PropertyGroup):
     workers: IntProperty(name="Workers", description="Processes that cast rays in parallel",
                          default=1, min=1, max=64)
     seed: IntProperty(name="Seed", description="Random seed: the same seed gives the same bake", default=0, min=0)
+    auto_bounces: bpy.props.BoolProperty(
+        name="Auto Bounces", description="Bounce until the rest of the series is below the tolerance", default=True)
+    bounces: IntProperty(name="Bounces", description="Interreflection bounces", default=2, min=0, max=1000)
+    bounce_tolerance: FloatProperty(name="Tolerance", description="Relative error left by 'auto' bounces",
+                                    default=1e-3, min=1e-8, max=0.5, precision=5)
 
     def to_settings(self) -> bake.BakeSettings:
         return bake.BakeSettings(order=self.order, mode=self.mode, samples=self.samples,
-                                 target_error=self.target_error, max_samples=self.max_samples, seed=self.seed)
+                                 target_error=self.target_error, max_samples=self.max_samples, seed=self.seed,
+                                 bounces=None if self.auto_bounces else self.bounces,
+                                 bounce_tolerance=self.bounce_tolerance)
 
 
 class PRT_PG_bake_status(bpy.types.PropertyGroup):

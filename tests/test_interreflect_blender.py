@@ -1,0 +1,113 @@
+"""Interreflected bakes through the add-on: albedo from materials, RGB storage, export and relighting."""
+
+import json
+
+import bpy
+import numpy as np
+import pytest
+
+from conftest import run_cli
+from prt_addon import mesh_data
+from prt_addon.baking import SceneBake
+from prt_addon.core import lobes, shading
+from prt_addon.core.bake import BakeSettings
+from test_bake_blender import add_mesh, grid
+
+
+def coloured(ob, rgb, texture=None):
+    material = bpy.data.materials.new(f"{ob.name} colour")
+    material.use_nodes = True
+    principled = next(n for n in material.node_tree.nodes if n.type == "BSDF_PRINCIPLED")
+    principled.inputs["Base Color"].default_value = (*rgb, 1.0)
+    if texture is not None:
+        node = material.node_tree.nodes.new("ShaderNodeTexImage")
+        node.image = texture
+        material.node_tree.links.new(node.outputs["Color"], principled.inputs["Base Color"])
+    ob.data.materials.append(material)
+    return ob
+
+
+def wall(name, x):
+    """A 2 × 2 wall in the plane x = `x`, standing on the floor, facing the origin."""
+    ticks = np.linspace(-1.0, 1.0, 9)
+    heights = np.linspace(0.0, 2.0, 9)
+    vertices = [(x, y, z) for z in heights for y in ticks]
+    faces = [(r * 9 + c, r * 9 + c + 1, (r + 1) * 9 + c + 1, (r + 1) * 9 + c) for r in range(8) for c in range(8)]
+    if x > 0:  # as listed the faces face +X
+        faces = [tuple(reversed(f)) for f in faces]
+    ob = add_mesh(name, vertices, faces)
+    assert np.sign(ob.data.polygons[0].normal.x) == -np.sign(x)  # facing into the box
+    return ob
+
+
+def cornell():
+    floor = coloured(grid("Floor", size=2.0, cuts=8), (0.8, 0.8, 0.8))
+    red = coloured(wall("Red", 1.0), (0.8, 0.05, 0.05))
+    green = coloured(wall("Green", -1.0), (0.05, 0.8, 0.05))
+    return floor, red, green
+
+
+def test_cornell_floor_turns_red_near_the_red_wall_and_green_near_the_green(empty_scene):
+    floor, red, green = cornell()
+    scene_bake = SceneBake(bpy.context, BakeSettings(mode="interreflected", order=3, samples=128), ["Floor"])
+    summary = scene_bake.run(log=lambda line: None)
+    transfer, meta = mesh_data.read_transfer(floor.data)
+    assert transfer.shape == (81, 3, 9) and meta["channels"] == 3 and meta["bounces"] >= 1
+    assert "prt" not in red.data and "prt" not in green.data  # they only reflected light
+    positions = np.array([v.co[:] for v in floor.data.vertices])
+    near_red = np.argmin(np.linalg.norm(positions - [0.75, 0.0, 0.0], axis=1))
+    near_green = np.argmin(np.linalg.norm(positions - [-0.75, 0.0, 0.0], axis=1))
+    sky = transfer[:, :, 0]  # under a constant sky only T_00 matters
+    assert sky[near_red, 0] > 1.05 * sky[near_red, 1]
+    assert sky[near_green, 1] > 1.05 * sky[near_green, 0]
+    assert summary.bounce_changes and summary.bounce_changes[0] < 1
+    report = scene_bake.report_dict()
+    assert report["bounces"] == summary.bounces and set(report["phases_s"]) >= {"rays_s", "bounces_s"}
+
+
+def test_grey_scene_keeps_one_channel_and_texture_albedo_is_sampled(empty_scene):
+    floor = coloured(grid("Floor", size=2.0, cuts=4), (0.5, 0.5, 0.5))
+    image = bpy.data.images.new("half red", 4, 4)
+    pixels = np.ones((4, 4, 4), dtype=np.float32)
+    pixels[:, 2:, 1:3] = 0.0  # right half (u ≥ 0.5) red
+    image.pixels.foreach_set(pixels.ravel())
+    textured = coloured(wall("Textured", 1.0), (0.8, 0.8, 0.8), texture=image)
+    notes = []
+    surface = mesh_data.surface_from_object(textured, bpy.context.evaluated_depsgraph_get(), notes, albedo=True)
+    assert any("no UV map" in note for note in notes)  # add_mesh makes no UVs: the colour value is used
+    np.testing.assert_allclose(surface.albedo, 0.8)
+    textured.data.uv_layers.new(name="UVMap")
+    uv = np.array([[v.co.y * 0.5 + 0.5, v.co.z * 0.5] for v in textured.data.vertices])
+    corner_vertex = [loop.vertex_index for loop in textured.data.loops]
+    textured.data.uv_layers["UVMap"].data.foreach_set("uv", uv[corner_vertex].ravel())
+    surface = mesh_data.surface_from_object(textured, bpy.context.evaluated_depsgraph_get(), [], albedo=True)
+    left, right = surface.albedo[uv[:, 0] < 0.4], surface.albedo[uv[:, 0] > 0.6]
+    assert np.all(left > 0.9) and np.all(right[:, 0] > 0.9) and np.all(right[:, 1:] < 0.1)
+    textured.data.materials.clear()  # now everything is grey (Blender's default)
+    scene_bake = SceneBake(bpy.context, BakeSettings(mode="interreflected", order=2, samples=32), ["Floor"])
+    scene_bake.run(log=lambda line: None)
+    transfer, meta = mesh_data.read_transfer(floor.data)
+    assert transfer.shape == (25, 4) and meta["channels"] == 1
+
+
+def test_rgb_bake_relights_and_exports(empty_scene, tmp_path):
+    floor, red, green = cornell()
+    SceneBake(bpy.context, BakeSettings(mode="interreflected", order=3, samples=64, bounces=2),
+              ["Floor"]).run(log=lambda line: None)
+    transfer, _ = mesh_data.read_transfer(floor.data)
+    light = np.tile(lobes.constant_sky(3, 1.0), (3, 1))
+    radiance = shading.shade(transfer, light)
+    np.testing.assert_allclose(radiance, np.einsum("vck,ck->vc", transfer, light), rtol=1e-6)
+    path = tmp_path / "cornell.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(path))
+    npz = tmp_path / "floor.npz"
+    result = run_cli("export", path, "--object", "Floor", "--npz", npz)
+    assert result.returncode == 0, result.stderr
+    exported = np.load(npz)
+    assert exported["transfer"].shape == (81, 3, 9)
+    assert json.loads(str(exported["metadata"]))["channels"] == 3
+
+
+def test_cli_bounces_argument():
+    result = run_cli("bake", "x.blend", "--mode", "interreflected", "--bounces", "many")
+    assert result.returncode == 1 and "bounces must be a whole number or 'auto'" in result.stderr
