@@ -9,7 +9,7 @@ import bpy
 import numpy as np
 
 from . import mesh_data
-from .core import bake, job
+from .core import bake, job, subsurface
 
 
 def worker_python_prefix() -> list[str]:
@@ -17,6 +17,26 @@ def worker_python_prefix() -> list[str]:
     if bpy.app.binary_path:
         return [bpy.app.binary_path, "--background", "--factory-startup", "--python-expr"]
     return [sys.executable, "-c"]
+
+
+def with_subsurface(surface, transfer, weight, mean_free_path, albedo, ior):
+    """(1 − w)·T + w·T_sss/albedo per channel: light scattered beneath the surface (Jensen's dipole, gathered
+    from the object's own incident transfer) mixed in by the Subsurface Weight. T_sss carries its colour, and the
+    display multiplies by albedo, hence the division."""
+    params = subsurface.dipole_parameters(mean_free_path, 1.0, albedo, ior)
+    areas = subsurface.vertex_areas(surface.receiver.positions, surface.triangles)
+    incident = transfer if transfer.ndim == 3 else transfer[:, None, :]
+
+    def scatter(plane):
+        return subsurface.subsurface_transfer(surface.receiver.positions, surface.receiver.normals, areas,
+                                              plane, params)  # (V, 3, n²)
+
+    if incident.shape[1] == 1:
+        scattered = scatter(incident[:, 0])
+    else:  # coloured incident light: channel c scatters with channel c's profile
+        scattered = np.stack([scatter(incident[:, c])[:, c] for c in range(3)], axis=1)
+    divided = scattered / np.maximum(albedo, 1e-3)[None, :, None]
+    return ((1.0 - weight) * np.broadcast_to(incident, scattered.shape) + weight * divided).astype(np.float32)
 
 
 def _albedo_channels(albedos):
@@ -61,6 +81,7 @@ class SceneBake:
             if sources <= {ob.name for ob in self.objects}:
                 self.notes.append("no visible mesh besides the receivers casts shadows; "
                                   "each receiver is shadowed by the receivers only")
+        self.surfaces = surfaces
         self.receivers = [surface.receiver for surface in surfaces]
         self.job = job.TransferJob(self.receivers, occluders, settings, workers, worker_python_prefix(),
                                    albedo=_albedo_channels([s.albedo for s in surfaces]) if bouncing else None)
@@ -103,6 +124,12 @@ class SceneBake:
         """Writes every receiver's transfer (replacing older bakes) and returns the summary."""
         results = self.job.results()[: len(self.objects)]  # the rest only reflected light onto these
         self.summary = self.job.summary(results)
+        self.subsurface_objects = []
+        for ob, surface, result in zip(self.objects, self.surfaces, results):
+            material = mesh_data.subsurface_material(ob) if self.settings.mode != "unshadowed" else None
+            if material is not None:
+                result.transfer = with_subsurface(surface, result.transfer, *material)
+                self.subsurface_objects.append(ob.name)
         for ob, result in zip(self.objects, results):
             extra = {"time_s": self.summary.time_s}
             if self.summary.bounces is not None:
@@ -120,4 +147,5 @@ class SceneBake:
             "est_max_rel_error": s.est_max_rel_error, "per_object": s.per_object, "problems": self.problems, "notes": self.notes,
             "phases_s": s.phases, "bounces": s.bounces, "bounce_relative_changes": s.bounce_changes,
             "bounce_tail": s.bounce_tail, "albedo_clamped": s.albedo_clamped,
+            "subsurface_objects": self.subsurface_objects,
         }

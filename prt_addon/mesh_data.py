@@ -315,6 +315,20 @@ def _material_colours(ob, mesh, material, notes) -> np.ndarray:
     return flat
 
 
+def subsurface_material(ob):
+    """(weight, mean free path RGB, albedo RGB, IOR) of the object's first Principled BSDF with Subsurface
+    Weight > 0, or None. The mean free path is Subsurface Radius × Subsurface Scale, in scene units."""
+    for slot in ob.material_slots:
+        tree = slot.material.node_tree if slot.material else None
+        for node in tree.nodes if tree else ():
+            if node.type == "BSDF_PRINCIPLED" and node.inputs["Subsurface Weight"].default_value > 0:
+                inputs = node.inputs
+                return (float(inputs["Subsurface Weight"].default_value),
+                        np.array(inputs["Subsurface Radius"].default_value[:3]) * inputs["Subsurface Scale"].default_value,
+                        np.array(inputs["Base Color"].default_value[:3]), float(inputs["IOR"].default_value))
+    return None
+
+
 def _base_colour_input(material):
     if material.node_tree is None:
         return None
