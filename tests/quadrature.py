@@ -1,6 +1,7 @@
-"""Reference integration on the sphere for the tests: independent of the code under test."""
+"""References for the tests, independent of the code under test: integration on the sphere and scipy's SH."""
 
 import numpy as np
+from scipy.special import sph_harm_y
 
 
 def random_directions(count, seed=0):
@@ -19,3 +20,18 @@ def sphere_quadrature(order):
         sin_theta * np.cos(phi), sin_theta * np.sin(phi), cos_theta[:, None]), axis=-1)
     weights = np.repeat(gl_weights, count_phi) * (2 * np.pi / count_phi)
     return directions.reshape(-1, 3), weights
+
+
+def reference_sh(order, directions):
+    """Real SH in the project's convention (Condon-Shortley phase, k = l(l+1)+m), built from scipy's complex
+    sph_harm_y: m > 0 → √2·Re, m < 0 → √2·Im of Y_l^|m|."""
+    directions = np.asarray(directions, dtype=np.float64)
+    theta = np.arccos(np.clip(directions[..., 2], -1.0, 1.0))
+    phi = np.arctan2(directions[..., 1], directions[..., 0])
+    values = np.empty(directions.shape[:-1] + (order * order,))
+    for l in range(order):
+        for m in range(-l, l + 1):
+            y = sph_harm_y(l, abs(m), theta, phi)
+            part = y.real if m >= 0 else y.imag
+            values[..., l * (l + 1) + m] = part if m == 0 else np.sqrt(2.0) * part
+    return values

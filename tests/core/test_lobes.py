@@ -5,27 +5,12 @@ import os
 import numpy as np
 import pytest
 from numpy.polynomial.legendre import leggauss
-from scipy.special import eval_legendre, sph_harm_y
+from scipy.special import eval_legendre
+
+from quadrature import reference_sh
 
 from prt_addon.core import lobes
 
-WORLD_HDRIS = sorted(glob.glob(os.path.join(
-    os.path.dirname(__file__), "..", "..", ".venv", "lib", "python3.11", "site-packages", "bpy", "5.0",
-    "datafiles", "studiolights", "world", "*.exr")))
-
-
-def reference_sh(order, directions):
-    """Real SH in the contract's convention, built from scipy's complex sph_harm_y."""
-    directions = np.asarray(directions, dtype=np.float64)
-    theta = np.arccos(np.clip(directions[..., 2], -1.0, 1.0))
-    phi = np.arctan2(directions[..., 1], directions[..., 0])
-    values = np.empty(directions.shape[:-1] + (order * order,))
-    for l in range(order):
-        for m in range(-l, l + 1):
-            y = sph_harm_y(l, abs(m), theta, phi)
-            part = y.real if m >= 0 else y.imag
-            values[..., l * (l + 1) + m] = part if m == 0 else np.sqrt(2.0) * part
-    return values
 
 
 def zonal_normalisation(order):
@@ -188,8 +173,10 @@ def load_blender_image(path):
 
 @pytest.fixture(scope="module")
 def hdris():
-    assert len(WORLD_HDRIS) >= 2, "Blender's bundled world HDRIs are missing"
-    return {os.path.basename(path): load_blender_image(path) for path in WORLD_HDRIS}
+    import bpy
+    paths = sorted(glob.glob(os.path.join(bpy.utils.system_resource("DATAFILES"), "studiolights", "world", "*.exr")))
+    assert len(paths) >= 2, "Blender's bundled world HDRIs are missing"
+    return {os.path.basename(path): load_blender_image(path) for path in paths}
 
 
 def test_projected_flux_matches_direct_integration_of_real_hdris(hdris):

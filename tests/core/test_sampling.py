@@ -1,27 +1,14 @@
 """Sampling: hash quality, lattice maps and frames, convergence and honest replicate errors, speed."""
-import time
 
 import numpy as np
 import pytest
 from numpy.polynomial.legendre import leggauss
 from scipy import stats
-from scipy.special import spherical_in, sph_harm_y
+from scipy.special import spherical_in
+
+from quadrature import reference_sh
 
 from prt_addon.core import sampling
-
-
-def reference_sh(order, directions):
-    """Real SH in the contract's convention, built from scipy's complex sph_harm_y."""
-    directions = np.asarray(directions, dtype=np.float64)
-    theta = np.arccos(np.clip(directions[..., 2], -1.0, 1.0))
-    phi = np.arctan2(directions[..., 1], directions[..., 0])
-    values = np.empty(directions.shape[:-1] + (order * order,))
-    for l in range(order):
-        for m in range(-l, l + 1):
-            y = sph_harm_y(l, abs(m), theta, phi)
-            part = y.real if m >= 0 else y.imag
-            values[..., l * (l + 1) + m] = part if m == 0 else np.sqrt(2.0) * part
-    return values
 
 
 def random_unit_vectors(count, seed):
@@ -246,22 +233,3 @@ def test_sphere_directions_are_rigid_uniform_rotations_of_one_set():
     point = np.array([sampling.sphere_directions(10, seed)[3] for seed in range(3000)])
     for axis in range(3):
         assert stats.kstest(point[:, axis], "uniform", args=(-1, 2)).pvalue > 0.01
-
-
-# --- speed ----------------------------------------------------------------------------------------------------
-
-def best_time(function, repeats=3):
-    function()  # first touch of fresh memory is an OS cost, not the algorithm's
-    times = []
-    for _ in range(repeats):
-        start = time.perf_counter()
-        function()
-        times.append(time.perf_counter() - start)
-    return min(times)
-
-
-def test_hash_and_lattice_for_100k_vertices_by_256_samples_are_fast():
-    keys = np.arange(100_000)
-    lattice = sampling.fibonacci_lattice(256)
-    assert best_time(lambda: sampling.hash_uniform(1, keys, 256)) < 0.5
-    assert best_time(lambda: sampling.cranley_patterson(lattice, sampling.hash_uniform(1, keys, 2))) < 0.75

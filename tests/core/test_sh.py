@@ -2,26 +2,12 @@ import math
 
 import numpy as np
 import pytest
-from scipy.special import sph_harm_y
 
-from quadrature import random_directions, sphere_quadrature
+from quadrature import random_directions, reference_sh, sphere_quadrature
 
 from prt_addon.core import sh
 
 POLES = np.array([[0.0, 0.0, 1.0], [0.0, 0.0, -1.0]])
-
-
-def scipy_real_sh(order, directions):
-    """Contract mapping from scipy's complex SH (which includes the Condon-Shortley phase)."""
-    theta = np.arccos(np.clip(directions[:, 2], -1, 1))
-    phi = np.arctan2(directions[:, 1], directions[:, 0])
-    values = np.empty((len(directions), order * order))
-    for l in range(order):
-        for m in range(-l, l + 1):
-            y = sph_harm_y(l, abs(m), theta, phi)
-            part = y.real if m >= 0 else y.imag
-            values[:, sh.index(l, m)] = part * (math.sqrt(2) if m != 0 else 1.0)
-    return values
 
 
 def test_index_band_of_and_coefficient_bands_agree():
@@ -68,7 +54,7 @@ def test_orthonormal_under_exact_quadrature(order):
 
 def test_matches_scipy_on_random_directions_and_poles_up_to_order_30():
     d = np.vstack([random_directions(300, seed=1), POLES])
-    reference = scipy_real_sh(30, d)
+    reference = reference_sh(30, d)
     for order in range(1, 31):
         values = sh.evaluate(order, d)
         assert np.abs(values - reference[:, :order * order]).max() < 1e-12, order
@@ -96,7 +82,7 @@ def test_order_64_finite_at_and_near_poles_and_exact_on_them():
 
 def test_order_64_matches_scipy():
     d = random_directions(100, seed=2)
-    assert np.abs(sh.evaluate(64, d) - scipy_real_sh(64, d)).max() < 1e-11
+    assert np.abs(sh.evaluate(64, d) - reference_sh(64, d)).max() < 1e-11
 
 
 def test_leading_shapes_are_kept():
