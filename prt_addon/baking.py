@@ -25,16 +25,9 @@ def with_subsurface(surface, transfer, weight, mean_free_path, albedo, ior):
     display multiplies by albedo, hence the division."""
     params = subsurface.dipole_parameters(mean_free_path, 1.0, albedo, ior)
     areas = subsurface.vertex_areas(surface.receiver.positions, surface.triangles)
+    scattered = subsurface.subsurface_transfer(surface.receiver.positions, surface.receiver.normals, areas,
+                                               transfer, params)  # (V, 3, n²); channel c scatters channel c
     incident = transfer if transfer.ndim == 3 else transfer[:, None, :]
-
-    def scatter(plane):
-        return subsurface.subsurface_transfer(surface.receiver.positions, surface.receiver.normals, areas,
-                                              plane, params)  # (V, 3, n²)
-
-    if incident.shape[1] == 1:
-        scattered = scatter(incident[:, 0])
-    else:  # coloured incident light: channel c scatters with channel c's profile
-        scattered = np.stack([scatter(incident[:, c])[:, c] for c in range(3)], axis=1)
     divided = scattered / np.maximum(albedo, 1e-3)[None, :, None]
     return ((1.0 - weight) * np.broadcast_to(incident, scattered.shape) + weight * divided).astype(np.float32)
 
