@@ -22,7 +22,18 @@ class _Parser(argparse.ArgumentParser):
         raise CliError(f"{self.prog}: {message}")
 
 
+def _bounces(text: str):
+    if text == "auto":
+        return None
+    try:
+        return int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"bounces must be a whole number or 'auto', not {text!r}") from None
+
+
 def build_parser() -> argparse.ArgumentParser:
+    from .convergence import DEFAULT_SAMPLES as CONVERGENCE_SAMPLES
+    from .validate import DEFAULT_PASSES as CYCLES_PASSES, DEFAULT_SAMPLES as CYCLES_SAMPLES
     parser = _Parser(prog="prt", description="Precomputed radiance transfer for Blender.")
     commands = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     commands.required = True
@@ -30,7 +41,10 @@ def build_parser() -> argparse.ArgumentParser:
     bake = commands.add_parser("bake", help="bake SH transfer into a .blend file's meshes")
     bake.add_argument("file", nargs="?", help=".blend file to open (in Blender: defaults to the open file)")
     bake.add_argument("--objects", help="comma-separated receiver names (default: every visible mesh)")
-    bake.add_argument("--mode", choices=("unshadowed", "shadowed"), default="shadowed")
+    bake.add_argument("--mode", choices=("unshadowed", "shadowed", "interreflected"), default="shadowed")
+    bake.add_argument("--bounces", type=_bounces, default=None,
+                      help="interreflected: a number of bounces, or 'auto' (default)")
+    bake.add_argument("--bounce-tolerance", type=float, default=1e-3, help="what 'auto' bounces may leave out")
     bake.add_argument("--order", type=int, default=4, help="SH bands, 1-10 (default 4: 16 coefficients)")
     bake.add_argument("--samples", type=int, default=256, help="rays per vertex (first round with a target)")
     bake.add_argument("--target-error", type=float, default=0.0,
@@ -58,11 +72,45 @@ def build_parser() -> argparse.ArgumentParser:
     relight.add_argument("--resolution", type=_resolution, metavar="WxH", help="default: the file's")
     relight.add_argument("--render", required=True, metavar="OUT.png", help="where to write the image")
 
+    validate = commands.add_parser("validate", help="compare the PRT colours with Cycles under the same light")
+    validate.add_argument("file", nargs="?", help="baked .blend file (in Blender: defaults to the open file)")
+    validate.add_argument("--objects", help="comma-separated names (default: every visible mesh with a bake)")
+    validate.add_argument("--samples", type=int, default=CYCLES_SAMPLES, help="Cycles samples per pass")
+    validate.add_argument("--passes", type=int, default=CYCLES_PASSES,
+                          help="Cycles passes with different seeds; their spread measures Cycles' noise (≥ 2)")
+    validate.add_argument("--report", help="write the comparison as JSON here")
+
+    convergence = commands.add_parser("convergence", help="bake at several sample counts; estimated and actual "
+                                                          "error against bake time as CSV and a PNG plot")
+    convergence.add_argument("file", nargs="?", help=".blend file (in Blender: defaults to the open file)")
+    convergence.add_argument("--samples", type=_sample_counts, default=CONVERGENCE_SAMPLES,
+                             metavar="16,32,...", help="rays per vertex of each bake (default 16,32,...,4096)")
+    convergence.add_argument("--objects", help="comma-separated receiver names (default: every visible mesh)")
+    convergence.add_argument("--order", type=int, default=4, help="SH bands, 1-10")
+    convergence.add_argument("--reference", choices=("bake", "cycles"), default="bake",
+                             help="bake: a bake at 16x the largest count, another seed (default); cycles: Cycles "
+                                  "under the scene's SH lights")
+    convergence.add_argument("--reference-samples", type=int, help="rays per vertex of the reference bake, or "
+                             f"Cycles samples per pass (default {CYCLES_SAMPLES}, "
+                             f"{CYCLES_PASSES} passes)")
+    convergence.add_argument("--workers", type=int, default=1, help="worker processes casting rays")
+    convergence.add_argument("--seed", type=int, default=0)
+    convergence.add_argument("--csv", default="convergence.csv", help="where to write the table")
+    convergence.add_argument("--plot", default="convergence.png", help="where to write the log-log plot")
+
     demo = commands.add_parser("demo", help="build the sample scene, bake, relight, render a PNG and a report")
     demo.add_argument("--output", default="demo_output", help="folder for the PNG, report and .blend")
     demo.add_argument("--workers", type=int, default=2)
     demo.add_argument("--samples", type=int, default=256)
     return parser
+
+
+def _sample_counts(text):
+    try:
+        return [int(part) for part in text.split(",") if part.strip()]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected comma-separated whole numbers, e.g. 16,64,256, got {text!r}") \
+            from None
 
 
 def _resolution(text):
@@ -111,9 +159,9 @@ def run_bake(args, in_blender: bool) -> int:
     from .core.bake import BakeSettings
     _open(args.file, required=not in_blender)
     settings = BakeSettings(order=args.order, mode=args.mode, samples=args.samples,
-                            target_error=args.target_error, max_samples=args.max_samples, seed=args.seed)
-    names = [n.strip() for n in args.objects.split(",")] if args.objects else None
-    scene_bake = SceneBake(bpy.context, settings, names, workers=args.workers)
+                            target_error=args.target_error, max_samples=args.max_samples, seed=args.seed,
+                            bounces=args.bounces, bounce_tolerance=args.bounce_tolerance)
+    scene_bake = SceneBake(bpy.context, settings, _names(args.objects), workers=args.workers)
     for problem in scene_bake.problems + scene_bake.notes:
         print(f"prt: warning: {problem}", file=sys.stderr)
     summary = scene_bake.run(log=lambda line: print(line, flush=True))
@@ -146,7 +194,7 @@ def run_export(args, in_blender: bool) -> int:
     np.savez(args.npz,
              positions=local @ matrix[:3, :3].T + matrix[:3, 3], normals=world_normals,
              local_positions=local, matrix_world=matrix,
-             transfer=transfer.reshape(len(local), 1, -1), metadata=np.array(json.dumps(meta)))
+             transfer=transfer.reshape(len(local), -1, transfer.shape[-1]), metadata=np.array(json.dumps(meta)))
     print(f"prt: wrote {args.npz}: {len(local)} vertices, order {meta['order']}, {meta['mode']}")
     return 0
 
@@ -163,12 +211,47 @@ def run_relight(args, in_blender: bool) -> int:
     return 0
 
 
+def _names(text):
+    return [name.strip() for name in text.split(",")] if text else None
+
+
+def run_validate(args, in_blender: bool) -> int:
+    from . import relight, validate
+    relight.ensure_registered()  # the scene's SH lights are add-on properties
+    _open(args.file, required=not in_blender)
+    validation = validate.Validation(bpy.context, args.samples, args.passes, _names(args.objects))
+    for sentence in validation.problems + validation.notes:
+        print(f"prt: warning: {sentence}", file=sys.stderr)
+    comparisons = validation.run(log=lambda line: print(line, flush=True))
+    print("\n".join(validation.lines(comparisons)), flush=True)
+    if args.report:
+        _write_json(args.report, validation.report_dict(comparisons))
+    return 0
+
+
+def run_convergence(args, in_blender: bool) -> int:
+    from . import convergence, relight
+    relight.ensure_registered()
+    _open(args.file, required=not in_blender)
+    study = convergence.Study(bpy.context, args.samples, _names(args.objects), args.order, args.reference,
+                              args.reference_samples, args.workers, args.seed)
+    rows = study.run(log=lambda line: print(line, flush=True))
+    for sentence in study.notes:
+        print(f"prt: warning: {sentence}", file=sys.stderr)
+    convergence.write_csv(args.csv, rows)
+    title = f"PRT error against bake time: {os.path.basename(bpy.data.filepath) or 'scene'}"
+    convergence.write_plot(args.plot, rows, title, study.reference_text())
+    print(f"prt: wrote {os.path.abspath(args.csv)} and {os.path.abspath(args.plot)}")
+    return 0
+
+
 def run_demo(args, in_blender: bool) -> int:
     from . import demo
     return demo.run(args.output, workers=args.workers, samples=args.samples)
 
 
-COMMANDS = {"bake": run_bake, "export": run_export, "relight": run_relight, "demo": run_demo}
+COMMANDS = {"bake": run_bake, "export": run_export, "relight": run_relight, "validate": run_validate,
+            "convergence": run_convergence, "demo": run_demo}
 
 
 def blender_command(argv) -> int:

@@ -22,7 +22,8 @@ DEFAULT_ALBEDO = (0.8, 0.8, 0.8)  # what Blender renders a mesh without material
 
 # -- colours ----------------------------------------------------------------------------------------------------
 def write_display_colours(mesh, transfer: np.ndarray, light: np.ndarray):
-    """Σ_k L_k T_k for transfer (V, n²) and light (3, n²) into a FLOAT_COLOR point attribute, alpha 1.
+    """Σ_k L_k T_k for transfer (V, n²) or (V, 3, n²) and light (3, n²) into a FLOAT_COLOR point attribute,
+    alpha 1.
 
     Negative values, which a ringing light gives, are clamped to black."""
     alpha_free = np.vstack([light, np.zeros((1, light.shape[1]))])  # a zero row: shade() fills four columns
@@ -76,6 +77,13 @@ def restore(ob):
     for material in shown:
         if material is not None and DISPLAY_OF_KEY in material and material.users == 0:
             bpy.data.materials.remove(material)
+
+
+def original_materials(ob) -> list:
+    """ob's own materials, also while display materials stand in for them."""
+    if is_shown(ob):
+        return [bpy.data.materials.get(name) if name else None for name in ob[ORIGINALS_KEY]]
+    return [slot.material for slot in ob.material_slots]
 
 
 def restore_all():

@@ -1,5 +1,6 @@
 """Shared fixtures. bpy is imported lazily so the core's tests run without it."""
 
+import importlib
 import os
 import subprocess
 import sys
@@ -51,6 +52,57 @@ def empty_scene(addon):
     bpy.ops.wm.read_homefile(use_empty=True)
     yield bpy.context.scene
     bpy.ops.wm.read_homefile(use_empty=True)
+
+
+@pytest.fixture
+def prt(addon):
+    """The installed add-on's modules: where identity matters (its property groups, handlers and light
+    classes), use these rather than the checkout's `prt_addon`."""
+    class Modules:
+        def __getattr__(self, name):
+            package = "ui." if name in ("handlers", "overlays") else ""
+            return importlib.import_module(f"{addon}.prt_addon.{package}{name}")
+    return Modules()
+
+
+class FakeLayout:
+    """Stands in for a UILayout: records the properties a panel draws and checks that they exist."""
+
+    def __init__(self, drawn):
+        self.drawn = drawn
+        self.enabled = True
+        self.use_property_split = False
+
+    def _child(self, *args, **kwargs):
+        return self
+
+    row = column = _child
+
+    def prop(self, data, name, **kwargs):
+        assert name in data.bl_rna.properties, name
+        self.drawn.append(name)
+
+    def template_list(self, list_type, list_id, data, name, active_data, active_name, **kwargs):
+        import bpy
+        assert hasattr(bpy.types, list_type)
+        assert name in data.bl_rna.properties and active_name in active_data.bl_rna.properties
+
+    def template_ID(self, data, name, **kwargs):
+        self.prop(data, name)
+
+    def operator(self, idname, **kwargs):
+        import bpy
+        category, name = idname.split(".")
+        assert hasattr(getattr(bpy.ops, category), name), idname
+
+    def operator_menu_enum(self, idname, name, **kwargs):
+        self.operator(idname)
+
+    def label(self, **kwargs):
+        pass
+
+    def progress(self, **kwargs):
+        pass
 
 
 def run_cli(*args, cwd=ROOT, timeout=600):

@@ -4,7 +4,6 @@ Property groups and handlers belong to the installed add-on, so its modules are 
 the checkout's `prt_addon` builds scenes, bakes and gives the reference maths.
 """
 
-import importlib
 import math
 import os
 
@@ -14,23 +13,13 @@ import pytest
 from bpy_extras.object_utils import world_to_camera_view
 from mathutils import Vector
 
-from conftest import run_cli
+from conftest import FakeLayout, run_cli
 from prt_addon import baking, mesh_data, scenes
 from prt_addon.core import bake, lobes, shading
 
 ORDER = 4
 POINT_SUN_PEAK = 17 / 16  # Σ_l Â_l(2l+1)/(4π) at order 4: a point sun overhead gives 17/16 · E/π
 SMALL = (96, 72)
-
-
-@pytest.fixture
-def prt(addon):
-    """The installed add-on's modules."""
-    class Modules:
-        def __getattr__(self, name):
-            package = "ui." if name in ("handlers", "overlays") else ""
-            return importlib.import_module(f"{addon}.prt_addon.{package}{name}")
-    return Modules()
 
 
 def update():
@@ -510,41 +499,6 @@ def test_overlays_are_absent_in_background_and_their_lines_are_right(plane, prt)
     direction = (lines[1] - lines[0]) / np.linalg.norm(lines[1] - lines[0])
     np.testing.assert_allclose(direction, shading.direction_from_angles(0.6, 1.0), atol=1e-6)
     np.testing.assert_allclose(line_colours[:, :3], [[1.0, 0.5, 0.0]] * 2)
-
-
-class FakeLayout:
-    """Stands in for a UILayout: records the properties a panel draws and checks that they exist."""
-
-    def __init__(self, drawn):
-        self.drawn = drawn
-        self.enabled = True
-        self.use_property_split = False
-
-    def _child(self, *args, **kwargs):
-        return self
-
-    row = column = _child
-
-    def prop(self, data, name, **kwargs):
-        assert name in data.bl_rna.properties, name
-        self.drawn.append(name)
-
-    def template_list(self, list_type, list_id, data, name, active_data, active_name, **kwargs):
-        assert hasattr(bpy.types, list_type)
-        assert name in data.bl_rna.properties and active_name in active_data.bl_rna.properties
-
-    def template_ID(self, data, name, **kwargs):
-        self.prop(data, name)
-
-    def operator(self, idname, **kwargs):
-        category, name = idname.split(".")
-        assert hasattr(getattr(bpy.ops, category), name), idname
-
-    def operator_menu_enum(self, idname, name, **kwargs):
-        self.operator(idname)
-
-    def label(self, **kwargs):
-        pass
 
 
 @pytest.mark.parametrize("kind", ["SUN", "ENVIRONMENT", "SKY"])

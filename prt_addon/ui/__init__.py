@@ -1,9 +1,9 @@
-"""The Blender interface: properties, operators, panels, SH lights, handlers and overlays, registered in that
-order (the lights' panel comes after the bake's in the sidebar)."""
+"""The Blender interface: properties, operators, panels, SH lights, validation, handlers and overlays, registered
+in that order (the sidebar shows the bake's panel, then the lights', then validation)."""
 
-from . import handlers, lights, operators, overlays, panels, properties
+from . import handlers, lights, operators, overlays, panels, properties, validation
 
-modules = (properties, operators, panels, lights, handlers, overlays)
+modules = (properties, operators, panels, lights, validation, handlers, overlays)
 
 
 def register():

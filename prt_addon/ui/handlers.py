@@ -15,6 +15,7 @@ from bpy.app.handlers import persistent
 
 from .. import display, mesh_data
 from ..core import lights
+from .lights import scene_lights
 
 _light_cache = lights.LightCache()
 _transfers = {}  # mesh name → (bake key, (V, n²) float32 transfer, None for a stale bake)
@@ -127,11 +128,10 @@ def _report_once(message):
 
 def _shade(receivers, settings):
     """Sums the lights once per SH order, then writes the colours of each mesh whose light or bake changed."""
-    scene_lights = [light for light in (entry.to_light(settings) for entry in settings.prt_lights) if light]
-    orders = {math.isqrt(transfer.shape[1]) for _, transfer in receivers}
-    totals = _light_cache.totals(scene_lights, orders, settings.prt_display.window)
+    orders = {math.isqrt(transfer.shape[-1]) for _, transfer in receivers}
+    totals = _light_cache.totals(scene_lights(settings), orders, settings.prt_display.window)
     for ob, transfer in receivers:
-        light = totals[math.isqrt(transfer.shape[1])]
+        light = totals[math.isqrt(transfer.shape[-1])]
         state = (_bake_key(ob.data), light.tobytes())
         if _shaded.get(ob.data.name_full) != state:
             display.write_display_colours(ob.data, transfer, light)

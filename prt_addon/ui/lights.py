@@ -98,6 +98,11 @@ class PRT_PG_light(bpy.types.PropertyGroup):
                                   pixels=lambda: _equirect_pixels(image))
 
 
+def scene_lights(scene) -> list:
+    """The scene's enabled SH lights that can shine, as the core's lights: what the display sums."""
+    return [light for light in (entry.to_light(scene) for entry in scene.prt_lights) if light]
+
+
 def _world_environment_image(world):
     if world is None or world.node_tree is None:
         return None

@@ -1,4 +1,5 @@
-"""Operators: the bake (modal in the UI, synchronous in background mode) and clearing a bake."""
+"""Operators: the bake (modal in the UI, synchronous in background mode) and clearing a bake; the modal runner
+the validation shares."""
 
 import bpy
 
@@ -12,21 +13,87 @@ def _report_outcome(operator, scene_bake):
     operator.report({"INFO"}, scene_bake.summary.line())
 
 
-class PRT_OT_bake(bpy.types.Operator):
+class ModalJob:
+    """An operator that runs a job (anything with step(budget_s) -> done, progress and cancel()) from timer
+    events: a progress bar in the panel, the window manager's progress, time left in the status bar, Esc cancels.
+    Subclasses make the job (start) and take its outcome (finish); in background mode, where timers never fire,
+    invoke runs execute."""
+    status_property = ""  # the WindowManager property, a PRT_PG_bake_status, that the panel reads
+    label = ""            # what the status bar calls the job
+    kept = ""             # what a cancelled or failed job leaves
+
+    _job = None
+    _timer = None
+
+    def invoke(self, context, event):
+        if bpy.app.background:
+            return self.execute(context)
+        self._job = self.start(context)
+        if self._job is None:
+            return {"CANCELLED"}
+        wm = context.window_manager
+        status = getattr(wm, self.status_property)
+        status.running = True
+        status.fraction = 0.0
+        wm.progress_begin(0, 1000)
+        self._timer = wm.event_timer_add(0.02, window=context.window)
+        wm.modal_handler_add(self)
+        return {"RUNNING_MODAL"}
+
+    def modal(self, context, event):
+        if event.type == "ESC":
+            self._job.cancel()
+            self._end(context)
+            self.report({"WARNING"}, f"{self.label} cancelled; {self.kept}")
+            return {"CANCELLED"}
+        if event.type != "TIMER":
+            return {"PASS_THROUGH"}
+        try:
+            done = self._job.step(0.08)
+        except Exception as failure:
+            self._end(context)
+            self.report({"ERROR"}, f"{self.label} failed, {self.kept}: {failure}")
+            return {"CANCELLED"}
+        progress = self._job.progress
+        status = getattr(context.window_manager, self.status_property)
+        status.fraction = progress.fraction
+        status.text = f"{100 * progress.fraction:.0f} %, {format_duration(progress.remaining)} left (Esc cancels)"
+        context.window_manager.progress_update(int(1000 * progress.fraction))
+        context.workspace.status_text_set(f"{self.label}: {status.text}")
+        for area in context.screen.areas:
+            if area.type == "VIEW_3D":
+                area.tag_redraw()
+        if not done:
+            return {"RUNNING_MODAL"}
+        self._end(context)
+        self.finish(context, self._job)
+        return {"FINISHED"}
+
+    def _end(self, context):
+        wm = context.window_manager
+        if self._timer is not None:
+            wm.event_timer_remove(self._timer)
+            self._timer = None
+        wm.progress_end()
+        getattr(wm, self.status_property).running = False
+        context.workspace.status_text_set(None)
+
+
+class PRT_OT_bake(ModalJob, bpy.types.Operator):
     """Bake SH transfer into the selected meshes (all visible meshes when none is selected)"""
     bl_idname = "prt.bake"
     bl_label = "Bake PRT"
     bl_options = {"REGISTER", "UNDO"}
-
-    _scene_bake = None
-    _timer = None
+    status_property = "prt_bake_status"
+    label = "PRT bake"
+    kept = "previous data kept"
 
     @classmethod
     def poll(cls, context):
         status = context.window_manager.prt_bake_status
         return context.mode == "OBJECT" and not status.running
 
-    def _start(self, context):
+    def start(self, context):
         settings = context.scene.prt_bake
         try:
             return baking.SceneBake(context, settings.to_settings(), workers=settings.workers)
@@ -35,7 +102,7 @@ class PRT_OT_bake(bpy.types.Operator):
             return None
 
     def execute(self, context):
-        scene_bake = self._start(context)
+        scene_bake = self.start(context)
         if scene_bake is None:
             return {"CANCELLED"}
         try:
@@ -47,58 +114,9 @@ class PRT_OT_bake(bpy.types.Operator):
         print(scene_bake.summary.line())
         return {"FINISHED"}
 
-    def invoke(self, context, event):
-        if bpy.app.background:
-            return self.execute(context)
-        self._scene_bake = self._start(context)
-        if self._scene_bake is None:
-            return {"CANCELLED"}
-        wm = context.window_manager
-        wm.prt_bake_status.running = True
-        wm.prt_bake_status.fraction = 0.0
-        wm.progress_begin(0, 1000)
-        self._timer = wm.event_timer_add(0.02, window=context.window)
-        wm.modal_handler_add(self)
-        return {"RUNNING_MODAL"}
-
-    def modal(self, context, event):
-        if event.type == "ESC":
-            self._scene_bake.cancel()
-            self._finish(context)
-            self.report({"WARNING"}, "PRT bake cancelled; previous data kept")
-            return {"CANCELLED"}
-        if event.type != "TIMER":
-            return {"PASS_THROUGH"}
-        try:
-            done = self._scene_bake.step(0.08)
-        except Exception as failure:
-            self._finish(context)
-            self.report({"ERROR"}, f"bake failed, previous data kept: {failure}")
-            return {"CANCELLED"}
-        progress = self._scene_bake.progress
-        status = context.window_manager.prt_bake_status
-        status.fraction = progress.fraction
-        status.text = f"{100 * progress.fraction:.0f} %, {format_duration(progress.remaining)} left (Esc cancels)"
-        context.window_manager.progress_update(int(1000 * progress.fraction))
-        context.workspace.status_text_set(f"PRT bake: {status.text}")
-        for area in context.screen.areas:
-            if area.type == "VIEW_3D":
-                area.tag_redraw()
-        if not done:
-            return {"RUNNING_MODAL"}
-        self._scene_bake.store()
-        self._finish(context)
-        _report_outcome(self, self._scene_bake)
-        return {"FINISHED"}
-
-    def _finish(self, context):
-        wm = context.window_manager
-        if self._timer is not None:
-            wm.event_timer_remove(self._timer)
-            self._timer = None
-        wm.progress_end()
-        wm.prt_bake_status.running = False
-        context.workspace.status_text_set(None)
+    def finish(self, context, scene_bake):
+        scene_bake.store()
+        _report_outcome(self, scene_bake)
 
 
 class PRT_OT_clear(bpy.types.Operator):
@@ -126,12 +144,4 @@ class PRT_OT_clear(bpy.types.Operator):
 
 classes = (PRT_OT_bake, PRT_OT_clear)
 
-
-def register():
-    for cls in classes:
-        bpy.utils.register_class(cls)
-
-
-def unregister():
-    for cls in reversed(classes):
-        bpy.utils.unregister_class(cls)
+register, unregister = bpy.utils.register_classes_factory(classes)

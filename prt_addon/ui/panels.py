@@ -73,12 +73,4 @@ class PRT_PT_bake_info(bpy.types.Panel):
 
 classes = (PRT_PT_bake, PRT_PT_bake_info)
 
-
-def register():
-    for cls in classes:
-        bpy.utils.register_class(cls)
-
-
-def unregister():
-    for cls in reversed(classes):
-        bpy.utils.unregister_class(cls)
+register, unregister = bpy.utils.register_classes_factory(classes)

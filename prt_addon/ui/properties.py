@@ -44,7 +44,7 @@ class PRT_PG_bake_settings(bpy.types.PropertyGroup):
 
 
 class PRT_PG_bake_status(bpy.types.PropertyGroup):
-    """What the panel shows while a modal bake runs (window-manager level: never saved)."""
+    """What the panel shows while a modal job (a bake, a validation) runs (window-manager level: never saved)."""
     running: bpy.props.BoolProperty(default=False)
     fraction: FloatProperty(default=0.0, min=0.0, max=1.0, subtype="FACTOR")
     text: bpy.props.StringProperty(default="")

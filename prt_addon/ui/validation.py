@@ -1,0 +1,145 @@
+"""Validation against Cycles from the sidebar: its settings, the operator (modal in the UI, synchronous in
+background mode) and a panel showing the last result."""
+
+import bpy
+from bpy.props import CollectionProperty, FloatProperty, IntProperty, PointerProperty, StringProperty
+
+from .. import mesh_data, validate
+from .operators import ModalJob
+from .properties import PRT_PG_bake_status
+
+
+class PRT_PG_validate_settings(bpy.types.PropertyGroup):
+    samples: IntProperty(name="Cycles Samples", description="Cycles samples per pass",
+                         default=validate.DEFAULT_SAMPLES, min=1, soft_max=4096)
+    passes: IntProperty(name="Passes", description="Cycles passes with different seeds: their spread measures "
+                        "Cycles' own noise, which is taken out of the comparison",
+                        default=validate.DEFAULT_PASSES, min=2, max=64)
+
+
+class PRT_PG_compared(bpy.types.PropertyGroup):
+    """One object's comparison (`name` from PropertyGroup); relative to the RMS of Cycles' colours."""
+    vertices: IntProperty()
+    error: FloatProperty()
+    cycles_noise: FloatProperty()
+
+
+class PRT_PG_validation_result(bpy.types.PropertyGroup):
+    """The last validation, for the panel (window-manager level: never saved)."""
+    compared: CollectionProperty(type=PRT_PG_compared)  # per object, then "all"
+    prt_bake_s: FloatProperty()
+    cycles_s: FloatProperty()
+    light: StringProperty()
+    notes: StringProperty()  # one per line
+
+
+class PRT_OT_validate(ModalJob, bpy.types.Operator):
+    """Compare the PRT colours with Cycles lit by the same band-limited light (the scene is put back afterwards)"""
+    bl_idname = "prt.validate"
+    bl_label = "Validate with Cycles"
+    bl_options = {"REGISTER"}
+    status_property = "prt_validate_status"
+    label = "PRT validate"
+    kept = "the scene is as it was"
+
+    @classmethod
+    def poll(cls, context):
+        return context.mode == "OBJECT" and not context.window_manager.prt_validate_status.running
+
+    def start(self, context):
+        settings = context.scene.prt_validate
+        try:
+            return validate.Validation(context, settings.samples, settings.passes)
+        except mesh_data.InputError as problem:
+            self.report({"ERROR"}, str(problem))
+            return None
+
+    def execute(self, context):
+        validation = self.start(context)
+        if validation is None:
+            return {"CANCELLED"}
+        try:
+            validation.run(log=print)
+        except Exception as failure:  # the scene was restored on the way out
+            self.report({"ERROR"}, f"validation failed, the scene is as it was: {failure}")
+            return {"CANCELLED"}
+        self.finish(context, validation)
+        return {"FINISHED"}
+
+    def finish(self, context, validation):
+        comparisons = validation.comparisons()
+        store_result(context.window_manager.prt_validation, validation, comparisons)
+        for sentence in validation.problems + validation.notes:
+            self.report({"WARNING"}, sentence)
+        lines = validation.lines(comparisons)
+        self.report({"INFO"}, lines[0])
+        print("\n".join(lines))
+
+
+def store_result(result, validation, comparisons):
+    result.compared.clear()
+    for comparison in comparisons:
+        entry = result.compared.add()
+        entry.name = comparison.name
+        entry.vertices = comparison.vertices
+        entry.error, entry.cycles_noise = comparison.error, comparison.cycles_noise
+    result.prt_bake_s = validation.bake_time_s()
+    result.cycles_s = validation.cycles.time_s
+    clamped = 100 * max(validation.clamped.values())
+    result.light = f"{'Scene' if validation.scene_light else 'Default'} light, {clamped:.2f} % clamped"
+    result.notes = "\n".join(validation.problems + validation.notes)
+
+
+class PRT_PT_validate(bpy.types.Panel):
+    """Cycles as ground truth: how far the PRT colours are from it, and what each took."""
+    bl_label = "Validation"
+    bl_idname = "PRT_PT_validate"
+    bl_space_type = "VIEW_3D"
+    bl_region_type = "UI"
+    bl_category = "PRT"
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        layout.use_property_decorate = False
+        settings = context.scene.prt_validate
+        column = layout.column(align=True)
+        column.prop(settings, "samples")
+        column.prop(settings, "passes")
+        status = context.window_manager.prt_validate_status
+        if status.running:
+            layout.progress(factor=status.fraction, type="BAR", text=status.text)
+        else:
+            layout.operator("prt.validate", icon="CHECKMARK")
+        result = context.window_manager.prt_validation
+        if not result.compared:
+            return
+        column = layout.column(align=True)
+        column.label(text="RMS error against Cycles (its noise taken out):")
+        for entry in result.compared:
+            row = column.row()
+            row.label(text=f"{entry.name} ({entry.vertices} vertices)")
+            row.label(text=f"{100 * entry.error:.2f} %  (noise {100 * entry.cycles_noise:.2f} %)")
+        column.label(text=f"PRT bake {result.prt_bake_s:.1f} s, Cycles {result.cycles_s:.1f} s")
+        column.label(text=result.light)
+        for note in result.notes.splitlines():
+            column.label(text=note, icon="INFO")
+
+
+classes = (PRT_PG_validate_settings, PRT_PG_compared, PRT_PG_validation_result, PRT_OT_validate, PRT_PT_validate)
+
+
+def register():
+    for cls in classes:
+        bpy.utils.register_class(cls)
+    bpy.types.Scene.prt_validate = PointerProperty(type=PRT_PG_validate_settings)
+    bpy.types.WindowManager.prt_validate_status = PointerProperty(type=PRT_PG_bake_status)
+    bpy.types.WindowManager.prt_validation = PointerProperty(type=PRT_PG_validation_result)
+
+
+def unregister():
+    del bpy.types.WindowManager.prt_validation
+    del bpy.types.WindowManager.prt_validate_status
+    del bpy.types.Scene.prt_validate
+    for cls in reversed(classes):
+        bpy.utils.unregister_class(cls)
