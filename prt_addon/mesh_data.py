@@ -17,6 +17,7 @@ import uuid
 import bpy
 import numpy as np
 
+from . import display
 from .core import bake
 
 ATTRIBUTE_PREFIX = "_prt_"
@@ -275,10 +276,11 @@ def vertex_albedo(ob, mesh, notes: list) -> np.ndarray:
     mesh.polygons.foreach_get("loop_total", face_sizes)
     corner_material = np.repeat(face_material, face_sizes)
     corner_colour = np.tile(np.array(DEFAULT_ALBEDO), (len(corner_vertex), 1))
-    for slot_index, slot in enumerate(ob.material_slots):
+    # The object's own materials, also while the PRT display's materials stand in for them.
+    for slot_index, material in enumerate(display.original_materials(ob)):
         corners = corner_material == slot_index
-        if slot.material is not None and corners.any():
-            corner_colour[corners] = _material_colours(ob, mesh, slot.material, notes)[corners]
+        if material is not None and corners.any():
+            corner_colour[corners] = _material_colours(ob, mesh, material, notes)[corners]
     total = np.zeros((len(mesh.vertices), 3))
     for channel in range(3):
         total[:, channel] = np.bincount(corner_vertex, corner_colour[:, channel], minlength=len(mesh.vertices))
@@ -318,8 +320,8 @@ def _material_colours(ob, mesh, material, notes) -> np.ndarray:
 def subsurface_material(ob):
     """(weight, mean free path RGB, albedo RGB, IOR) of the object's first Principled BSDF with Subsurface
     Weight > 0, or None. The mean free path is Subsurface Radius × Subsurface Scale, in scene units."""
-    for slot in ob.material_slots:
-        tree = slot.material.node_tree if slot.material else None
+    for material in display.original_materials(ob):
+        tree = material.node_tree if material else None
         for node in tree.nodes if tree else ():
             if node.type == "BSDF_PRINCIPLED" and node.inputs["Subsurface Weight"].default_value > 0:
                 inputs = node.inputs

@@ -111,3 +111,13 @@ def test_rgb_bake_relights_and_exports(empty_scene, tmp_path):
 def test_cli_bounces_argument():
     result = run_cli("bake", "x.blend", "--mode", "interreflected", "--bounces", "many")
     assert result.returncode == 1 and "bounces must be a whole number or 'auto'" in result.stderr
+
+
+def test_albedo_is_read_from_the_own_materials_while_the_prt_display_stands_in(empty_scene):
+    floor = coloured(grid("Floor", size=2.0, cuts=2), (0.7, 0.1, 0.2))
+    SceneBake(bpy.context, BakeSettings(samples=16), ["Floor"]).run(log=lambda line: None)
+    bpy.context.scene.prt_display.show_prt = True  # the add-on's handler swaps in its display materials
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    assert floor.active_material.name != "Floor colour"
+    surface = mesh_data.surface_from_object(floor, depsgraph, [], albedo=True)
+    np.testing.assert_allclose(surface.albedo, np.tile([0.7, 0.1, 0.2], (9, 1)), rtol=1e-6)
