@@ -13,6 +13,7 @@ from bpy.props import (BoolProperty, CollectionProperty, EnumProperty, FloatProp
 from mathutils import Vector
 
 from ..core import lights, shading
+from .panels import SidebarPanel
 
 KINDS = [
     ("SUN", "Sun", "A disc of light from one direction, optionally following a Sun light object", "LIGHT_SUN", 0),
@@ -180,13 +181,10 @@ class PRT_OT_light_remove(bpy.types.Operator):
         return {"FINISHED"}
 
 
-class PRT_PT_lights(bpy.types.Panel):
+class PRT_PT_lights(SidebarPanel, bpy.types.Panel):
     """The seed's light driver: a list of lights (its keys 1-8), the active one's θ and φ and settings."""
     bl_label = "Lights"
     bl_idname = "PRT_PT_lights"
-    bl_space_type = "VIEW_3D"
-    bl_region_type = "UI"
-    bl_category = "PRT"
 
     def draw(self, context):
         layout = self.layout
@@ -222,13 +220,10 @@ class PRT_PT_lights(bpy.types.Panel):
         layout.prop(light, "strength")
 
 
-class PRT_PT_display(bpy.types.Panel):
+class PRT_PT_display(SidebarPanel, bpy.types.Panel):
     """The seed's F1/F2 (own materials or PRT), T (albedo texture), N and L (normals, light directions)."""
     bl_label = "Display"
     bl_idname = "PRT_PT_display"
-    bl_space_type = "VIEW_3D"
-    bl_region_type = "UI"
-    bl_category = "PRT"
     bl_parent_id = "PRT_PT_lights"
 
     def draw(self, context):

@@ -5,12 +5,16 @@ import bpy
 from .. import mesh_data
 
 
-class PRT_PT_bake(bpy.types.Panel):
-    bl_label = "Bake"
-    bl_idname = "PRT_PT_bake"
+class SidebarPanel:
+    """Where every PRT panel lives: the 3D View's sidebar, tab "PRT"."""
     bl_space_type = "VIEW_3D"
     bl_region_type = "UI"
     bl_category = "PRT"
+
+
+class PRT_PT_bake(SidebarPanel, bpy.types.Panel):
+    bl_label = "Bake"
+    bl_idname = "PRT_PT_bake"
 
     def draw(self, context):
         layout = self.layout
@@ -41,13 +45,10 @@ class PRT_PT_bake(bpy.types.Panel):
             row.operator("prt.clear", icon="X", text="")
 
 
-class PRT_PT_bake_info(bpy.types.Panel):
+class PRT_PT_bake_info(SidebarPanel, bpy.types.Panel):
     """What is stored on the active object: how, when, and how accurate."""
     bl_label = "Stored Bake"
     bl_idname = "PRT_PT_bake_info"
-    bl_space_type = "VIEW_3D"
-    bl_region_type = "UI"
-    bl_category = "PRT"
     bl_parent_id = "PRT_PT_bake"
 
     @classmethod

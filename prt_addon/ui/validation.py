@@ -6,6 +6,7 @@ from bpy.props import CollectionProperty, FloatProperty, IntProperty, PointerPro
 
 from .. import mesh_data, validate
 from .operators import ModalJob
+from .panels import SidebarPanel
 from .properties import PRT_PG_bake_status
 
 
@@ -90,13 +91,10 @@ def store_result(result, validation, comparisons):
     result.notes = "\n".join(validation.problems + validation.notes)
 
 
-class PRT_PT_validate(bpy.types.Panel):
+class PRT_PT_validate(SidebarPanel, bpy.types.Panel):
     """Cycles as ground truth: how far the PRT colours are from it, and what each took."""
     bl_label = "Validation"
     bl_idname = "PRT_PT_validate"
-    bl_space_type = "VIEW_3D"
-    bl_region_type = "UI"
-    bl_category = "PRT"
 
     def draw(self, context):
         layout = self.layout
