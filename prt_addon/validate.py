@@ -144,6 +144,7 @@ class LightGroup:
     objects: list
     environment: np.ndarray  # (H, W, 3) equirect reconstruction of the light
     bounces: int | None
+    indirect_only: bool = False  # only the bounced light: what colour bleeding is made of
 
 
 class CyclesReference:
@@ -200,7 +201,8 @@ class CyclesReference:
         context.view_layer.objects.active = group.objects[0]
         start = time.perf_counter()
         bpy.ops.object.bake(type="DIFFUSE", target="VERTEX_COLORS", use_selected_to_active=False,
-                            pass_filter={"DIRECT", "COLOR"} | ({"INDIRECT"} if group.bounces else set()))
+                            pass_filter={"COLOR"} | ({"INDIRECT"} if group.bounces else set())
+                            | (set() if group.indirect_only else {"DIRECT"}))
         self.time_s += time.perf_counter() - start
         for ob in group.objects:
             values = np.empty(len(ob.data.vertices) * 4, dtype=np.float32)
