@@ -104,7 +104,6 @@ def test_white_floor_turns_red_beside_a_red_wall():
     """A floor with a red wall standing on one side: floor vertices near the wall gather red light."""
     ticks = np.linspace(-1.0, 1.0, 11)
     floor = np.array([(x, y, 0.0) for y in ticks for x in ticks])
-    wall = np.array([(1.0, y, z) for z in ticks[5:] + 1.0 for y in ticks])  # x = 1, z in [1, 2]... see below
     wall = np.array([(1.0, y, z) for z in np.linspace(0.0, 2.0, 11) for y in ticks])
     quads_floor = [(r * 11 + c, r * 11 + c + 1, (r + 1) * 11 + c + 1, (r + 1) * 11 + c) for r in range(10)
                    for c in range(10)]

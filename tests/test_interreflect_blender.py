@@ -4,7 +4,6 @@ import json
 
 import bpy
 import numpy as np
-import pytest
 
 from conftest import run_cli
 from prt_addon import mesh_data

@@ -81,3 +81,25 @@ def test_negative_light_is_clamped_to_black_in_the_display_colours():
     mesh.color_attributes[display.DISPLAY_ATTRIBUTE].data.foreach_get("color", written)
     np.testing.assert_allclose(written.reshape(-1, 4)[:, :3], np.maximum(raw, 0.0), rtol=1e-6)
     bpy.data.meshes.remove(mesh)
+
+
+def test_an_environment_whose_image_file_is_missing_does_not_shine_and_says_so(empty_scene, tmp_path, capfd):
+    from prt_addon import mesh_data
+    from prt_addon.baking import SceneBake
+    from prt_addon.core.bake import BakeSettings
+    from test_bake_blender import grid
+    floor = grid("Floor", cuts=2)
+    SceneBake(bpy.context, BakeSettings(order=ORDER, samples=16), ["Floor"]).run(log=lambda line: None)
+    missing = bpy.data.images.new("gone", 8, 4, float_buffer=True)
+    missing.source, missing.filepath = "FILE", str(tmp_path / "gone.exr")  # a file that is not there
+    missing.reload()
+    bpy.ops.prt.light_add(kind="SKY")
+    bpy.ops.prt.light_add(kind="ENVIRONMENT")
+    empty_scene.prt_lights[-1].image = missing
+    bpy.context.evaluated_depsgraph_get().update()
+    transfer, _ = mesh_data.read_transfer(floor.data)
+    written = np.empty(len(floor.data.vertices) * 4, dtype=np.float32)
+    floor.data.color_attributes["prt_color"].data.foreach_get("color", written)
+    sky_only = shading.shade(transfer, np.tile(lobes.constant_sky(ORDER, 1.0), (3, 1)))
+    np.testing.assert_allclose(written.reshape(-1, 4)[:, :3], sky_only, rtol=1e-5)
+    assert "SH light 'Environment' has no readable image" in capfd.readouterr().out

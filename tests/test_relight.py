@@ -5,7 +5,6 @@ the checkout's `prt_addon` builds scenes, bakes and gives the reference maths.
 """
 
 import math
-import os
 
 import bpy
 import numpy as np

@@ -129,6 +129,9 @@ def _report_once(message):
 def _shade(receivers, settings):
     """Sums the lights once per SH order, then writes the colours of each mesh whose light or bake changed."""
     orders = {math.isqrt(transfer.shape[-1]) for _, transfer in receivers}
+    for entry in settings.prt_lights:
+        if entry.use and entry.kind == "ENVIRONMENT" and entry.environment_image(settings) is None:
+            _report_once(f"PRT: SH light {entry.name!r} has no readable image (missing file?); it does not shine")
     totals = _light_cache.totals(scene_lights(settings), orders, settings.prt_display.window)
     for ob, transfer in receivers:
         light = totals[math.isqrt(transfer.shape[-1])]

@@ -1,7 +1,6 @@
 """Sampling: hash quality, lattice maps and frames, convergence and honest replicate errors, speed."""
 
 import numpy as np
-import pytest
 from numpy.polynomial.legendre import leggauss
 from scipy import stats
 from scipy.special import spherical_in
