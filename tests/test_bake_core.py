@@ -122,6 +122,7 @@ def test_workers_give_bit_identical_results():
     two_workers = job.TransferJob([receiver], disc(1.0, 1.0), settings, workers=2,
                                   worker_command=[sys.executable, "-c"])
     two_workers.min_rays_for_workers = 0  # a job this small would otherwise stay in one process
+    two_workers.worker_start_s = 0.0      # and split evenly, so the worker really bakes half
     two = two_workers.run()[0]
     np.testing.assert_array_equal(one.transfer, two.transfer)
     np.testing.assert_array_equal(one.std_error, two.std_error)
@@ -133,3 +134,10 @@ def test_workers_give_bit_identical_results():
 def test_settings_out_of_range_are_named(field, value):
     problems = bake.BakeSettings(**{field: value}).problems()
     assert len(problems) == 1 and field.split("_")[0] in problems[0]
+
+
+def test_chunk_split_gives_this_process_the_workers_start_up_time():
+    owners = job.chunk_owners(200, 2, estimated_s=10.0, start_s=1.0)
+    assert owners.count(0) == 110 and owners.count(1) == 90  # t = 5.5 s: 55 % here, 45 % in the worker
+    assert job.chunk_owners(6, 3, estimated_s=10.0, start_s=0.0) == [0, 1, 2, 0, 1, 2]  # interleaved
+    assert set(job.chunk_owners(10, 2, estimated_s=0.1, start_s=1.0)) == {0}  # not worth starting one

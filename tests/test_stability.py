@@ -139,7 +139,7 @@ def test_a_bake_failing_halfway_keeps_the_previous_data(empty_scene, monkeypatch
     before, meta_before = transfer_of(floor)
     scene_bake = SceneBake(bpy.context, BakeSettings(order=4, samples=64), ["Floor"], workers=2)
     scene_bake.job.worker_command = [sys.executable, "-c", "import sys; sys.exit('worker ran out of memory')"]
-    scene_bake.job.min_rays_for_workers = 0
+    scene_bake.job.min_rays_for_workers, scene_bake.job.worker_start_s = 0, 0.0
     with pytest.raises(RuntimeError, match="worker ran out of memory"):
         scene_bake.run(log=lambda line: None)
     after, meta_after = transfer_of(floor)

@@ -62,6 +62,23 @@ class Summary:
 
 # Starting a worker costs about a second (importing bpy): below this many rays one process is faster.
 WORKER_MIN_RAYS = 2_000_000
+WORKER_START_S = 1.0
+TYPICAL_RAYS_PER_S = 500_000  # one process on the demo scene, benchmarks/bake.py
+
+
+def chunk_owners(chunks: int, processes: int, estimated_s: float, start_s: float = WORKER_START_S) -> list[int]:
+    """Which process bakes each chunk (0: this one), interleaved so every process gets a similar mix of the
+    scene. Workers start WORKER_START_S late, so this process takes the extra share that lets all finish
+    together: t = (T + (N−1)·s)/N, this process T·(t/T), each worker (t − s). Any split gives the same bits."""
+    time_each = (estimated_s + (processes - 1) * start_s) / processes
+    shares = np.array([time_each] + [max(time_each - start_s, 0.0)] * (processes - 1))
+    shares = shares / shares.sum() if shares.sum() > 0 else np.full(processes, 1.0 / processes)
+    owners, taken = [], np.zeros(processes)
+    for _ in range(chunks):
+        owner = int(np.argmin((taken + 0.5) / np.maximum(shares, 1e-12)))
+        owners.append(owner)
+        taken[owner] += 1
+    return owners
 
 
 class TransferJob:
@@ -77,6 +94,7 @@ class TransferJob:
         self.workers = max(1, int(workers))
         self.worker_command = worker_command
         self.min_rays_for_workers = WORKER_MIN_RAYS
+        self.worker_start_s = WORKER_START_S
         self.chunks = bake.chunk_ranges([len(r.positions) for r in receivers])
         self.total_vertices = sum(len(r.positions) for r in receivers)
         self._vertex_offsets = np.cumsum([0] + [len(r.positions) for r in receivers])
@@ -166,9 +184,12 @@ class TransferJob:
             job_file = os.path.join(folder, "job.npz")
             save_job(job_file, self.receivers, self.occluders, self.settings)
             processes, lines = [], queue.Queue()
+            owners = chunk_owners(len(self.chunks), self.workers, self._estimated_seconds(), self.worker_start_s)
             try:
                 for worker in range(1, self.workers):
-                    theirs = list(range(worker, len(self.chunks), self.workers))
+                    theirs = [index for index, owner in enumerate(owners) if owner == worker]
+                    if not theirs:
+                        continue
                     out_file = os.path.join(folder, f"result_{worker}.npz")
                     command = worker_process_command(self.worker_command, job_file, out_file, theirs)
                     process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
@@ -177,7 +198,7 @@ class TransferJob:
                     processes.append((process, out_file, theirs))
                 caster = bake.RayCaster(self.occluders)
                 running = len(processes)
-                for chunk_index in range(0, len(self.chunks), self.workers):
+                for chunk_index in (index for index, owner in enumerate(owners) if owner == 0):
                     yield from self._bake_chunk_here(caster, chunk_index)
                     running -= self._take_progress(lines, wait=0.0)
                 while running:
@@ -194,6 +215,10 @@ class TransferJob:
                     if process.poll() is None:
                         process.kill()
                         process.wait()
+
+    def _estimated_seconds(self) -> float:
+        """One process's time for the whole job, from the first round's rays at a typical rate."""
+        return self.total_vertices * self.settings.samples / TYPICAL_RAYS_PER_S
 
     def _take_progress(self, lines: queue.Queue, wait: float) -> int:
         """Counts the workers' progress lines; returns how many workers finished."""
