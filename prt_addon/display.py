@@ -110,13 +110,19 @@ def display_material(original):
     return existing or _new_display_material(f"PRT {stands_for}" if original else "PRT Display", original)
 
 
-def _new_display_material(name, original):
+def new_node_material(name):
+    """A new material with an empty node tree, on Blender 4.2 and 5.x alike."""
     material = bpy.data.materials.new(name)
-    material[DISPLAY_OF_KEY] = original.name if original else ""
     if material.node_tree is None:  # before Blender 5.0 new materials have no node tree
         material.use_nodes = True
+    material.node_tree.nodes.clear()
+    return material
+
+
+def _new_display_material(name, original):
+    material = new_node_material(name)
+    material[DISPLAY_OF_KEY] = original.name if original else ""
     nodes, links = material.node_tree.nodes, material.node_tree.links
-    nodes.clear()
     colour = nodes.new("ShaderNodeVertexColor")
     colour.layer_name = DISPLAY_ATTRIBUTE
     mix = nodes.new("ShaderNodeMix")

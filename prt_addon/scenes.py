@@ -8,6 +8,8 @@ import bmesh
 import bpy
 import numpy as np
 
+from .display import new_node_material
+
 UV_MAP = "UVMap"
 ALBEDO_NAME = "Albedo"
 ALBEDO_SIZE = 512
@@ -210,11 +212,8 @@ def _wrapped_box_blur(pixels, radius):
 
 def _albedo_material(image):
     """Principled BSDF whose Base Color is the image, read through the UV map."""
-    material = bpy.data.materials.new(ALBEDO_NAME)
-    if material.node_tree is None:  # before Blender 5.0 new materials have no node tree
-        material.use_nodes = True
+    material = new_node_material(ALBEDO_NAME)
     nodes, links = material.node_tree.nodes, material.node_tree.links
-    nodes.clear()
     uv = nodes.new("ShaderNodeUVMap")
     uv.uv_map = UV_MAP
     texture = nodes.new("ShaderNodeTexImage")

@@ -265,11 +265,8 @@ def _not_baked(context, receivers):
 
 def _diffuse_material():
     """A Diffuse BSDF whose colour is each mesh's ALBEDO_ATTRIBUTE."""
-    material = bpy.data.materials.new("PRT validation")
-    if material.node_tree is None:  # before Blender 5.0 new materials have no node tree
-        material.use_nodes = True
+    material = display.new_node_material("PRT validation")
     nodes, links = material.node_tree.nodes, material.node_tree.links
-    nodes.clear()
     albedo = nodes.new("ShaderNodeVertexColor")
     albedo.layer_name = ALBEDO_ATTRIBUTE
     diffuse = nodes.new("ShaderNodeBsdfDiffuse")
