@@ -16,14 +16,33 @@ def _report_outcome(operator, scene_bake):
 class ModalJob:
     """An operator that runs a job (anything with step(budget_s) -> done, progress and cancel()) from timer
     events: a progress bar in the panel, the window manager's progress, time left in the status bar, Esc cancels.
-    Subclasses make the job (start) and take its outcome (finish); in background mode, where timers never fire,
-    invoke runs execute."""
+    Subclasses make the job (make_job, which may raise InputError) and take its outcome (finish); in background
+    mode, where timers never fire, invoke runs execute: the same job run synchronously with log lines."""
     status_property = ""  # the WindowManager property, a PRT_PG_bake_status, that the panel reads
     label = ""            # what the status bar calls the job
     kept = ""             # what a cancelled or failed job leaves
 
     _job = None
     _timer = None
+
+    def start(self, context):
+        try:
+            return self.make_job(context)
+        except mesh_data.InputError as problem:
+            self.report({"ERROR"}, str(problem))
+            return None
+
+    def execute(self, context):
+        job = self.start(context)
+        if job is None:
+            return {"CANCELLED"}
+        try:
+            job.run(log=print)
+        except Exception as failure:  # nothing was written, or the scene was put back on the way out
+            self.report({"ERROR"}, f"{self.label} failed, {self.kept}: {failure}")
+            return {"CANCELLED"}
+        self.finish(context, job)
+        return {"FINISHED"}
 
     def invoke(self, context, event):
         if bpy.app.background:
@@ -93,30 +112,15 @@ class PRT_OT_bake(ModalJob, bpy.types.Operator):
         status = context.window_manager.prt_bake_status
         return context.mode == "OBJECT" and not status.running
 
-    def start(self, context):
+    def make_job(self, context):
         settings = context.scene.prt_bake
-        try:
-            return baking.SceneBake(context, settings.to_settings(), workers=settings.workers)
-        except mesh_data.InputError as problem:
-            self.report({"ERROR"}, str(problem))
-            return None
-
-    def execute(self, context):
-        scene_bake = self.start(context)
-        if scene_bake is None:
-            return {"CANCELLED"}
-        try:
-            scene_bake.run(log=print)
-        except Exception as failure:  # the previous bake is untouched: nothing was written
-            self.report({"ERROR"}, f"bake failed, previous data kept: {failure}")
-            return {"CANCELLED"}
-        _report_outcome(self, scene_bake)
-        print(scene_bake.summary.line())
-        return {"FINISHED"}
+        return baking.SceneBake(context, settings.to_settings(), workers=settings.workers)
 
     def finish(self, context, scene_bake):
-        scene_bake.store()
+        if scene_bake.summary is None:  # the modal path stops stepping when done; run() has stored already
+            scene_bake.store()
         _report_outcome(self, scene_bake)
+        print(scene_bake.summary.line())
 
 
 class PRT_OT_clear(bpy.types.Operator):

@@ -4,7 +4,7 @@ background mode) and a panel showing the last result."""
 import bpy
 from bpy.props import CollectionProperty, FloatProperty, IntProperty, PointerProperty, StringProperty
 
-from .. import mesh_data, validate
+from .. import validate
 from .operators import ModalJob
 from .panels import SidebarPanel
 from .properties import PRT_PG_bake_status
@@ -47,25 +47,9 @@ class PRT_OT_validate(ModalJob, bpy.types.Operator):
     def poll(cls, context):
         return context.mode == "OBJECT" and not context.window_manager.prt_validate_status.running
 
-    def start(self, context):
+    def make_job(self, context):
         settings = context.scene.prt_validate
-        try:
-            return validate.Validation(context, settings.samples, settings.passes)
-        except mesh_data.InputError as problem:
-            self.report({"ERROR"}, str(problem))
-            return None
-
-    def execute(self, context):
-        validation = self.start(context)
-        if validation is None:
-            return {"CANCELLED"}
-        try:
-            validation.run(log=print)
-        except Exception as failure:  # the scene was restored on the way out
-            self.report({"ERROR"}, f"validation failed, the scene is as it was: {failure}")
-            return {"CANCELLED"}
-        self.finish(context, validation)
-        return {"FINISHED"}
+        return validate.Validation(context, settings.samples, settings.passes)
 
     def finish(self, context, validation):
         comparisons = validation.comparisons()
