@@ -14,7 +14,7 @@ Shadowed estimator (what makes it cheap compared with the seed's uniform-sphere 
 from dataclasses import dataclass
 from itertools import chain, repeat
 import math
-from operator import itemgetter
+from operator import is_not, itemgetter
 import zlib
 
 import numpy as np
@@ -167,22 +167,24 @@ class RayCaster:
 
     def occluded(self, origins: np.ndarray, directions: np.ndarray, hits: bool = False):
         """origins (c, 3), directions (c, k, 3) → (c, k) bool: did the ray hit anything; with `hits`, also the
-        hit triangles (−1 for none) and distances."""
-        distance, triangle = self._cast(map(tuple, origins.tolist()), directions, hits)
-        occluded = ~np.isnan(distance)
-        return (occluded, np.where(occluded, triangle, -1), distance) if hits else occluded
-
-    def _cast(self, origins, directions: np.ndarray, with_triangles: bool):
-        """Hit distances (NaN for a miss), and triangles if asked, of directions (c, k, 3) from c origins,
-        looped in C by map()."""
+        hit triangles (−1 for none) and distances (NaN for none)."""
         c, k = directions.shape[:2]
-        xs, ys, zs = directions.reshape(-1, 3).T.tolist()
-        per_ray_origins = chain.from_iterable(repeat(origin, k) for origin in origins)
-        casts = map(self.tree.ray_cast, per_ray_origins, zip(xs, ys, zs), repeat(self.max_distance))
-        if not with_triangles:
-            return np.array(list(map(itemgetter(3), casts)), dtype=np.float64).reshape(c, k), None
+        casts = self._casts(origins, directions)
+        if not hits:  # a miss returns (None, None, None, None)
+            found = map(is_not, map(itemgetter(3), casts), repeat(None))
+            return np.fromiter(found, dtype=bool, count=c * k).reshape(c, k)
         found = np.array(list(map(itemgetter(2, 3), casts)), dtype=np.float64).reshape(c, k, 2)
-        return found[..., 1], np.nan_to_num(found[..., 0], nan=-1.0).astype(np.int64)
+        distance = found[..., 1]
+        occluded = ~np.isnan(distance)
+        return occluded, np.where(occluded, np.nan_to_num(found[..., 0], nan=-1.0), -1).astype(np.int64), distance
+
+    def _casts(self, origins, directions: np.ndarray):
+        """ray_cast results of directions (c, k, 3) from c origins, lazily, looped in C by map(). Directions are
+        read one coordinate at a time: contiguous for component-major arrays."""
+        k = directions.shape[1]
+        xs, ys, zs = directions.reshape(-1, 3).T.tolist()
+        per_ray_origins = chain.from_iterable(repeat(origin, k) for origin in map(tuple, origins.tolist()))
+        return map(self.tree.ray_cast, per_ray_origins, zip(xs, ys, zs), repeat(self.max_distance))
 
     def front_hits(self, origins, directions, triangle, distance):
         """(barycentric (H, 3), front (H,) bool) for hits: the light leaving a surface is known on its front."""
@@ -287,9 +289,8 @@ def _blocked_round(caster, origins, frames, unshadowed, keys, round_index, per_r
     c, rays = len(keys), replicates * per_replicate
     stream = keys[:, None] * STREAMS_PER_VERTEX + round_index * replicates + np.arange(replicates)[None, :]
     shifts = sampling.hash_uniform(settings.seed, stream.reshape(-1), 2).reshape(c, replicates, 2)
-    local = sampling.square_to_cosine_hemisphere(
-        sampling.cranley_patterson(sampling.fibonacci_lattice(per_replicate), shifts))  # (c, R, k, 3)
-    world = local.reshape(c, rays, 3) @ frames  # rows of each frame: tangent, bitangent, normal
+    world = sampling.cosine_lattice_directions(sampling.fibonacci_lattice(per_replicate), shifts, frames[:, None])
+    world = world.reshape(c, rays, 3)  # (c, R, k, 3) → (c, R·k, 3), still a view
     if settings.mode == "interreflected":
         occluded, triangle, distance = caster.occluded(origins, world, hits=True)
         round_hits = _round_hits(caster, origins, world, occluded, triangle, distance)
@@ -302,19 +303,21 @@ def _blocked_round(caster, origins, frames, unshadowed, keys, round_index, per_r
 
 
 def _replicate_means(world, occluded, order, replicates, values_at_once=1 << 22):
-    """Per vertex and replicate: mean of Y over all rays and of (1 − V)·Y, a few vertices at a time so memory
-    stays bounded at high orders and ray counts."""
+    """Per vertex and replicate: mean of Y over all rays and of (1 − V)·Y, both as one small matrix product
+    per replicate, a few replicates at a time so memory stays bounded at high orders and ray counts."""
     c, rays = occluded.shape
-    all_rays = np.empty((c, replicates, order * order))
-    blocked = np.empty_like(all_rays)
-    step = max(1, values_at_once // (rays * order * order))
-    for first in range(0, c, step):
+    per_replicate, coefficients = rays // replicates, order * order
+    weights = np.empty((c * replicates, 2, per_replicate))  # rows: all rays, blocked rays
+    weights[:, 0] = 1.0 / per_replicate
+    np.multiply(occluded.reshape(-1, per_replicate), 1.0 / per_replicate, out=weights[:, 1])
+    directions = world.reshape(c * replicates, per_replicate, 3)
+    means = np.empty((c * replicates, 2, coefficients))
+    step = max(1, values_at_once // (per_replicate * coefficients))
+    for first in range(0, c * replicates, step):
         part = slice(first, first + step)
-        basis = sh.evaluate(order, world[part]).reshape(-1, replicates, rays // replicates, order * order)
-        hit = occluded[part].reshape(-1, replicates, rays // replicates, 1)
-        all_rays[part] = basis.mean(2)
-        blocked[part] = (basis * hit).mean(2)
-    return all_rays, blocked
+        np.matmul(weights[part], sh.evaluate(order, directions[part]), out=means[part])
+    means = means.reshape(c, replicates, 2, coefficients)
+    return means[:, :, 0], means[:, :, 1]
 
 
 def _round_hits(caster, origins, world, occluded, triangle, distance):

@@ -59,12 +59,12 @@ def fibonacci_lattice(count):
 
 
 def cranley_patterson(points, shifts):
-    """Every shift (..., 2) applied to all points (n, 2) modulo 1 → (..., n, 2).
+    """Every shift (..., d) applied to all points (n, d) modulo 1 → (..., n, d).
 
     Works one coordinate at a time so numpy's inner loops run along the n points, not along pairs."""
     points, shifts = np.asarray(points, dtype=np.float64), np.asarray(shifts, dtype=np.float64)
     shifted = np.empty(shifts.shape[:-1] + points.shape)
-    for axis in range(2):
+    for axis in range(points.shape[-1]):
         coordinate = shifted[..., axis]
         np.add(points[:, axis], shifts[..., None, axis], out=coordinate)
         # Both terms lie in [0, 1), so one subtraction wraps exactly (no floor, no rounding).
@@ -72,14 +72,30 @@ def cranley_patterson(points, shifts):
     return shifted
 
 
-def square_to_cosine_hemisphere(u):
-    """[0, 1)² (..., 2) → unit directions (..., 3) with density cos θ / π about +Z (polar map: uniform on the
-    disc, lifted to the hemisphere). u[..., 0] sets sin²θ, so its strata are equal-cosine-weight rings."""
-    u = np.asarray(u, dtype=np.float64)
-    radius = np.sqrt(u[..., 0])
-    azimuth = 2.0 * np.pi * u[..., 1]
-    height = np.sqrt(1.0 - u[..., 0])
-    return np.stack([radius * np.cos(azimuth), radius * np.sin(azimuth), height], axis=-1)
+def cosine_lattice_directions(points, shifts, frames):
+    """Unit directions (..., n, 3): the lattice `points` (n, 2) under every Cranley-Patterson shift (..., 2),
+    mapped to the cosine-weighted hemisphere of each frame (..., 3, 3) whose rows are tangent, bitangent, normal.
+
+    Polar map (uniform on the disc, lifted to the hemisphere): the first coordinate is sin²θ, so its strata are
+    equal-cosine-weight rings; the second is the azimuth. Shifting the azimuth turns the tangent frame, so cos and
+    sin are taken once per lattice point and once per shift rather than once per ray. The result is a view of a
+    component-major array: each coordinate of all the rays is contiguous, as the ray caster and SH evaluation
+    read them."""
+    points, shifts, frames = (np.asarray(a, dtype=np.float64) for a in (points, shifts, frames))
+    sin_squared = cranley_patterson(points[:, :1], shifts[..., :1])[..., 0]  # (..., n)
+    height = np.sqrt(1.0 - sin_squared)
+    radius = np.sqrt(sin_squared, out=sin_squared)
+    azimuth, turn = 2.0 * np.pi * points[:, 1], 2.0 * np.pi * shifts[..., 1:]
+    cos_turn, sin_turn = np.cos(turn), np.sin(turn)
+    tangent = cos_turn * frames[..., 0, :] + sin_turn * frames[..., 1, :]  # (..., 3)
+    bitangent = cos_turn * frames[..., 1, :] - sin_turn * frames[..., 0, :]
+    across, along = radius * np.cos(azimuth), radius * np.sin(azimuth)
+    directions = np.empty((3,) + radius.shape)
+    for axis, component in enumerate(directions):
+        np.multiply(across, tangent[..., axis, None], out=component)
+        component += along * bitangent[..., axis, None]
+        component += height * frames[..., 2, axis, None]
+    return np.moveaxis(directions, 0, -1)
 
 
 def square_to_sphere(u):

@@ -15,13 +15,19 @@ def random_unit_vectors(count, seed):
     return v / np.linalg.norm(v, axis=1, keepdims=True)
 
 
+def polar_cosine_hemisphere(u):
+    """The polar map written out: u[..., 0] = sin²θ, u[..., 1] the azimuth in turns."""
+    radius, azimuth = np.sqrt(u[..., 0]), 2 * np.pi * u[..., 1]
+    return np.stack([radius * np.cos(azimuth), radius * np.sin(azimuth), np.sqrt(1 - u[..., 0])], axis=-1)
+
+
 def shifted_cosine_directions(seed, normals, replicates, points):
     """(N, R, S, 3) world directions: a Cranley-Patterson-rotated lattice per (vertex, replicate)."""
     keys = np.arange(len(normals) * replicates)
     shifts = sampling.hash_uniform(seed, keys, 2).reshape(len(normals), replicates, 2)
-    local = sampling.square_to_cosine_hemisphere(
-        sampling.cranley_patterson(sampling.fibonacci_lattice(points), shifts))
-    return sampling.to_world(local, normals)
+    tangents, bitangents = sampling.orthonormal_basis(normals)
+    frames = np.stack([tangents, bitangents, normals], axis=1)
+    return sampling.cosine_lattice_directions(sampling.fibonacci_lattice(points), shifts, frames[:, None])
 
 
 # --- hash ---------------------------------------------------------------------------------------------------
@@ -82,15 +88,30 @@ def test_cranley_patterson_shifts_every_point_modulo_one():
     assert edge.min() >= 0.0 and edge.max() < 1.0  # sums that round up to 1 still wrap
 
 
-def test_cosine_hemisphere_points_are_unit_and_upper():
-    u = np.random.default_rng(2).random((1000, 2))
-    u[:4] = [[0, 0], [1 - 2 ** -53, 0.5], [0.5, 1 - 2 ** -53], [2 ** -53, 0.25]]
-    directions = sampling.square_to_cosine_hemisphere(u)
-    np.testing.assert_allclose(np.linalg.norm(directions, axis=-1), 1.0, rtol=1e-15)
-    assert directions[..., 2].min() >= 0.0
-    # density cos θ/π: z² = 1 - u₀ is uniform
-    z = sampling.square_to_cosine_hemisphere(np.random.default_rng(3).random((20000, 2)))[:, 2]
-    assert stats.kstest(z ** 2, "uniform").pvalue > 0.01
+def test_cosine_lattice_directions_are_the_shifted_lattice_under_the_polar_map_in_each_frame():
+    normals = random_unit_vectors(6, 5)
+    normals[:2] = [[0, 0, 1], [0, 0, -1]]
+    shifts = np.random.default_rng(6).random((6, 3, 2))
+    shifts[0, 0] = [1 - 2 ** -53, 1 - 2 ** -53]  # sums that round up to 1 wrap
+    points = sampling.fibonacci_lattice(21)
+    tangents, bitangents = sampling.orthonormal_basis(normals)
+    frames = np.stack([tangents, bitangents, normals], axis=1)
+    directions = sampling.cosine_lattice_directions(points, shifts, frames[:, None])
+    assert directions.shape == (6, 3, 21, 3)
+    local = polar_cosine_hemisphere(np.mod(points + shifts[..., None, :], 1.0))
+    np.testing.assert_allclose(directions, local @ frames[:, None], rtol=0, atol=2e-15)
+    np.testing.assert_allclose(np.linalg.norm(directions, axis=-1), 1.0, rtol=0, atol=2e-15)
+    assert np.einsum("vrkc,vc->vrk", directions, normals).min() >= 0.0
+    # each coordinate of all rays is contiguous, as the ray caster reads them
+    assert np.moveaxis(directions, -1, 0).flags.c_contiguous
+
+
+def test_cosine_lattice_directions_have_the_cosine_density():
+    shifts = np.random.default_rng(3).random((20000, 2))
+    directions = sampling.cosine_lattice_directions(np.zeros((1, 2)), shifts, np.eye(3))[:, 0]
+    assert stats.kstest(directions[:, 2] ** 2, "uniform").pvalue > 0.01  # density cos θ/π: z² is uniform
+    azimuth = np.arctan2(directions[:, 1], directions[:, 0])
+    assert stats.kstest(azimuth, "uniform", args=(-np.pi, 2 * np.pi)).pvalue > 0.01
 
 
 def test_square_to_sphere_is_unit_and_uniform():
