@@ -151,7 +151,7 @@ def subset_receivers(receivers, picks):
 def bake_picks(receivers, occluders, picks, settings, workers=1):
     """Our estimator on the picked vertices only → (transfer, std_error, rel_error) in pick order."""
     subsets, rows = subset_receivers(receivers, picks)
-    results = job.TransferJob(subsets, occluders, settings, workers, baking.worker_python_prefix()).run()
+    results = job.TransferJob(subsets, occluders, settings, workers, baking.worker_launch()).run()
     stacked = [np.concatenate([getattr(r, name) for r in results])[rows]
                for name in ("transfer", "std_error", "rel_error")]
     return tuple(stacked)

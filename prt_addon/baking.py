@@ -12,10 +12,14 @@ from . import mesh_data
 from .core import bake, job, subsurface
 
 
-def worker_python_prefix() -> list[str]:
-    """How to start a worker: Blender's own binary in a real Blender, the module's Python with bpy."""
+def worker_launch():
+    """How to start a worker: Blender's own binary in a real Blender. With the bpy module, a fork of this process
+    on Linux (it starts in milliseconds instead of importing bpy for a second, and shares the ray tree); the
+    module's Python elsewhere (macOS and Windows cannot fork a process that runs Blender safely)."""
     if bpy.app.binary_path:
         return [bpy.app.binary_path, "--background", "--factory-startup", "--python-expr"]
+    if sys.platform.startswith("linux"):
+        return job.FORK
     return [sys.executable, "-c"]
 
 
@@ -76,7 +80,7 @@ class SceneBake:
                                   "each receiver is shadowed by the receivers only")
         self.surfaces = surfaces
         self.receivers = [surface.receiver for surface in surfaces]
-        self.job = job.TransferJob(self.receivers, occluders, settings, workers, worker_python_prefix(),
+        self.job = job.TransferJob(self.receivers, occluders, settings, workers, worker_launch(),
                                    albedo=_albedo_channels([s.albedo for s in surfaces]) if bouncing else None)
         self.summary = None
 

@@ -113,20 +113,21 @@ def test_target_error_is_met_per_vertex():
     assert result.rays.max() > result.rays.min()  # rays went where the error was
 
 
-def test_workers_give_bit_identical_results():
+@pytest.mark.parametrize("launch", [[sys.executable, "-c"], job.FORK], ids=["spawned", "forked"])
+def test_workers_give_bit_identical_results(launch):
     rng = np.random.default_rng(5)
     positions = np.column_stack([rng.uniform(-1.5, 1.5, (300, 2)), np.zeros(300)])
     receiver = bake.Receiver("w", positions, np.tile([0.0, 0.0, 1.0], (300, 1)), 21)
     settings = bake.BakeSettings(order=4, samples=64, target_error=0.05, max_samples=1024)
     one = job.TransferJob([receiver], disc(1.0, 1.0), settings, workers=1).run()[0]
-    two_workers = job.TransferJob([receiver], disc(1.0, 1.0), settings, workers=2,
-                                  worker_command=[sys.executable, "-c"])
+    two_workers = job.TransferJob([receiver], disc(1.0, 1.0), settings, workers=2, worker_command=launch)
     two_workers.min_rays_for_workers = 0  # a job this small would otherwise stay in one process
     two_workers.worker_start_s = 0.0      # and split evenly, so the worker really bakes half
     two = two_workers.run()[0]
     np.testing.assert_array_equal(one.transfer, two.transfer)
     np.testing.assert_array_equal(one.std_error, two.std_error)
     np.testing.assert_array_equal(one.rays, two.rays)
+    assert two_workers.done_vertices == 300  # the worker's progress lines arrived
 
 
 @pytest.mark.parametrize("field, value", [("order", 0), ("order", 11), ("samples", 4), ("mode", "glossy"),

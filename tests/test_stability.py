@@ -1,5 +1,6 @@
 """Stiff and extreme geometry gives finite, correct transfer; failures halfway never cost data."""
 
+import os
 import sys
 
 import bpy
@@ -8,7 +9,7 @@ import pytest
 
 from prt_addon import mesh_data
 from prt_addon.baking import SceneBake
-from prt_addon.core import bake, lobes, sh
+from prt_addon.core import bake, job, lobes, sh
 from prt_addon.core.bake import BakeSettings
 from quadrature import sphere_quadrature
 from test_bake_blender import add_mesh, box, grid, transfer_of
@@ -133,7 +134,7 @@ def test_object_transforms_scale_and_offset_do_not_change_the_bake(empty_scene, 
     np.testing.assert_allclose(moved, reference, atol=1e-5)
 
 
-def test_a_bake_failing_halfway_keeps_the_previous_data(empty_scene, monkeypatch):
+def test_a_bake_failing_halfway_keeps_the_previous_data(empty_scene):
     floor, _ = grid("Floor", cuts=30), box("Cube")
     bake_objects(["Floor"], order=3)
     before, meta_before = transfer_of(floor)
@@ -141,6 +142,30 @@ def test_a_bake_failing_halfway_keeps_the_previous_data(empty_scene, monkeypatch
     scene_bake.job.worker_command = [sys.executable, "-c", "import sys; sys.exit('worker ran out of memory')"]
     scene_bake.job.min_rays_for_workers, scene_bake.job.worker_start_s = 0, 0.0
     with pytest.raises(RuntimeError, match="worker ran out of memory"):
+        scene_bake.run(log=lambda line: None)
+    after, meta_after = transfer_of(floor)
+    np.testing.assert_array_equal(before, after)
+    assert meta_before == meta_after
+
+
+def test_a_forked_worker_failing_halfway_is_reported_and_keeps_the_previous_data(empty_scene, monkeypatch):
+    floor, _ = grid("Floor", cuts=30), box("Cube")
+    bake_objects(["Floor"], order=3)
+    before, meta_before = transfer_of(floor)
+    baking_process = os.getpid()
+    real_bake_chunk, chunks_baked = job.bake.bake_chunk, []
+
+    def failing_in_the_worker(*args):
+        chunks_baked.append(args[2])
+        if os.getpid() != baking_process and len(chunks_baked) == 3:
+            raise MemoryError("worker ran out of memory on its third chunk")
+        return real_bake_chunk(*args)
+
+    monkeypatch.setattr(job.bake, "bake_chunk", failing_in_the_worker)
+    scene_bake = SceneBake(bpy.context, BakeSettings(order=4, samples=64), ["Floor"], workers=2)
+    assert scene_bake.job.worker_command == job.FORK
+    scene_bake.job.min_rays_for_workers = 0
+    with pytest.raises(RuntimeError, match="MemoryError: worker ran out of memory on its third chunk"):
         scene_bake.run(log=lambda line: None)
     after, meta_after = transfer_of(floor)
     np.testing.assert_array_equal(before, after)

@@ -5,9 +5,11 @@ number of workers. `step()` returns after a bounded amount of work so a modal op
 """
 
 from dataclasses import dataclass, field
+import functools
 import json
 import os
 import queue
+import signal
 import subprocess
 import sys
 import tempfile
@@ -60,9 +62,14 @@ class Summary:
                 f"est. RMS rel. error {self.est_rms_rel_error:.4f}, max {self.est_max_rel_error:.4f}{bounced}")
 
 
-# Starting a worker costs about a second (importing bpy): below this many rays one process is faster.
+# Starting a worker process costs about a second (importing bpy): below this many rays one process is faster.
 WORKER_MIN_RAYS = 2_000_000
 WORKER_START_S = 1.0
+# FORK as the worker command forks this process instead (Linux, bpy module): a few milliseconds, and the
+# workers share the ray tree already built here.
+FORK = "fork"
+FORK_MIN_RAYS = 200_000
+FORK_START_S = 0.01
 TYPICAL_RAYS_PER_S = 500_000  # one process on the demo scene, benchmarks/bake.py
 
 
@@ -92,9 +99,10 @@ class TransferJob:
         self.occluders = occluders
         self.settings = settings
         self.workers = max(1, int(workers))
-        self.worker_command = worker_command
-        self.min_rays_for_workers = WORKER_MIN_RAYS
-        self.worker_start_s = WORKER_START_S
+        self.worker_command = worker_command  # a command prefix (see worker_process_command) or FORK
+        forking = worker_command == FORK
+        self.min_rays_for_workers = FORK_MIN_RAYS if forking else WORKER_MIN_RAYS
+        self.worker_start_s = FORK_START_S if forking else WORKER_START_S
         self.chunks = bake.chunk_ranges([len(r.positions) for r in receivers])
         self.total_vertices = sum(len(r.positions) for r in receivers)
         self._vertex_offsets = np.cumsum([0] + [len(r.positions) for r in receivers])
@@ -179,11 +187,14 @@ class TransferJob:
                 return
 
     def _run_workers(self):
-        """This process bakes every N-th chunk itself; N-1 worker processes bake the others."""
+        """This process bakes its share of the chunks itself; N-1 worker processes bake the others."""
         with tempfile.TemporaryDirectory(prefix="prt_bake_") as folder:
-            job_file = os.path.join(folder, "job.npz")
-            save_job(job_file, self.receivers, self.occluders, self.settings)
-            processes, lines = [], queue.Queue()
+            forking = self.worker_command == FORK
+            caster = bake.RayCaster(self.occluders) if forking else None  # built once, before forking: shared
+            if not forking:
+                job_file = os.path.join(folder, "job.npz")
+                save_job(job_file, self.receivers, self.occluders, self.settings)
+            workers, lines = [], queue.Queue()
             owners = chunk_owners(len(self.chunks), self.workers, self._estimated_seconds(), self.worker_start_s)
             try:
                 for worker in range(1, self.workers):
@@ -191,30 +202,31 @@ class TransferJob:
                     if not theirs:
                         continue
                     out_file = os.path.join(folder, f"result_{worker}.npz")
-                    command = worker_process_command(self.worker_command, job_file, out_file, theirs)
-                    process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                                               text=True, env=_worker_environment())
-                    threading.Thread(target=_read_lines, args=(process.stdout, lines), daemon=True).start()
-                    processes.append((process, out_file, theirs))
-                caster = bake.RayCaster(self.occluders)
-                running = len(processes)
+                    if forking:
+                        started = _ForkedWorker(functools.partial(
+                            bake_chunks, caster, self.receivers, self.settings, theirs, out_file), out_file + ".failed")
+                    else:
+                        started = _SpawnedWorker(worker_process_command(self.worker_command, job_file, out_file,
+                                                                        theirs))
+                    threading.Thread(target=_read_lines, args=(started.stdout, lines), daemon=True).start()
+                    workers.append((started, out_file, theirs))
+                caster = caster or bake.RayCaster(self.occluders)  # spawned workers start meanwhile
+                running = len(workers)
                 for chunk_index in (index for index, owner in enumerate(owners) if owner == 0):
                     yield from self._bake_chunk_here(caster, chunk_index)
                     running -= self._take_progress(lines, wait=0.0)
                 while running:
                     running -= self._take_progress(lines, wait=0.05)
                     yield
-                for process, out_file, theirs in processes:
-                    if process.wait() != 0:
-                        message = process.stderr.read().strip().splitlines()
-                        raise RuntimeError("bake worker failed: " + (message[-1] if message else "no message"))
+                for started, out_file, theirs in workers:
+                    failure = started.finish()
+                    if failure is not None:
+                        raise RuntimeError("bake worker failed: " + failure)
                     for chunk_index, result in zip(theirs, load_results(out_file)):
                         self._store(chunk_index, result)
             finally:
-                for process, _, _ in processes:
-                    if process.poll() is None:
-                        process.kill()
-                        process.wait()
+                for started, _, _ in workers:
+                    started.kill()
 
     def _estimated_seconds(self) -> float:
         """One process's time for the whole job, from the first round's rays at a typical rate."""
@@ -304,6 +316,68 @@ def _worker_environment():
     return dict(os.environ, OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1", MKL_NUM_THREADS="1")
 
 
+class _SpawnedWorker:
+    """A new process running `command`; its progress lines come on stdout, a failure's message on stderr."""
+
+    def __init__(self, command):
+        self.process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                                        env=_worker_environment())
+        self.stdout = self.process.stdout
+
+    def finish(self) -> str | None:
+        """Waits for the worker; None when it succeeded, else the last line of what it said."""
+        if self.process.wait() == 0:
+            return None
+        message = self.process.stderr.read().strip().splitlines()
+        return message[-1] if message else f"exit code {self.process.returncode}"
+
+    def kill(self):
+        if self.process.poll() is None:
+            self.process.kill()
+            self.process.wait()
+
+
+class _ForkedWorker:
+    """A fork of this process running work(stream): it inherits the scene and the ray tree, so it starts in
+    milliseconds. It leaves with os._exit, never running this process's exit handlers."""
+
+    def __init__(self, work, failure_file):
+        read, write = os.pipe()
+        self._failure_file = failure_file
+        self.pid = os.fork()
+        if self.pid == 0:
+            os.close(read)
+            code = 1
+            try:
+                with os.fdopen(write, "w") as stream:
+                    work(stream)
+                code = 0
+            except BaseException as error:  # whatever it is, the child reports it and leaves
+                with open(self._failure_file, "w", encoding="utf-8") as failure:
+                    failure.write(f"{type(error).__name__}: {error}")
+            finally:
+                os._exit(code)
+        os.close(write)
+        self.stdout = os.fdopen(read, "r")
+        self._code = None
+
+    def finish(self) -> str | None:
+        """Waits for the worker; None when it succeeded, else what went wrong."""
+        if self._code is None:
+            self._code = os.waitstatus_to_exitcode(os.waitpid(self.pid, 0)[1])
+        if self._code == 0:
+            return None
+        if not os.path.exists(self._failure_file):
+            return f"exit code {self._code}"
+        with open(self._failure_file, encoding="utf-8") as failure:
+            return failure.read().strip()
+
+    def kill(self):
+        if self._code is None:
+            os.kill(self.pid, signal.SIGKILL)
+            self._code = os.waitstatus_to_exitcode(os.waitpid(self.pid, 0)[1])
+
+
 # -- the worker side ----------------------------------------------------------------------------------
 def worker_process_command(python_prefix, job_file, out_file, chunk_indices):
     """`python_prefix` runs a Python snippet with mathutils importable: [python, '-c'] with the bpy module,
@@ -356,11 +430,9 @@ def _load_records(data, slot):
                                      for name in ("vertex", "triangle", "barycentric", "weight")))
 
 
-def worker_main(job_file, out_file, chunk_indices):
-    """Runs in a worker process: bakes its chunks, prints progress lines, saves the results."""
-    receivers, occluders, settings = load_job(job_file)
+def bake_chunks(caster, receivers, settings, chunk_indices, out_file, stream):
+    """A worker's work: bakes its chunks with a progress line on `stream` after each, saves the results."""
     chunks = bake.chunk_ranges([len(r.positions) for r in receivers])
-    caster = bake.RayCaster(occluders)
     arrays = {"count": np.array(len(chunk_indices))}
     for slot, chunk_index in enumerate(chunk_indices):
         receiver_index, start, stop = chunks[chunk_index]
@@ -377,6 +449,11 @@ def worker_main(job_file, out_file, chunk_indices):
         if result.records is not None:
             for name in ("vertex", "triangle", "barycentric", "weight"):
                 arrays[f"records_{name}_{slot}"] = getattr(result.records, name)
-        print(f"PRT-PROGRESS {stop - start} {rays}", flush=True)
+        print(f"PRT-PROGRESS {stop - start} {rays}", file=stream, flush=True)
     np.savez(out_file, **arrays)
-    sys.stdout.flush()
+
+
+def worker_main(job_file, out_file, chunk_indices):
+    """Runs in a spawned worker process: loads the job, builds its own ray tree, bakes its chunks."""
+    receivers, occluders, settings = load_job(job_file)
+    bake_chunks(bake.RayCaster(occluders), receivers, settings, chunk_indices, out_file, sys.stdout)
