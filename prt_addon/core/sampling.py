@@ -1,4 +1,4 @@
-"""Randomised low-discrepancy directions and Monte Carlo SH projection.
+"""Randomised low-discrepancy directions on the cosine-weighted hemisphere, and the hash that randomises them.
 
 A vertex's estimate uses R replicates of one Fibonacci lattice, each replicate shifted modulo 1 by its own
 hashed offset (Cranley-Patterson rotation). Every shifted point is uniform on the unit square, so each
@@ -8,7 +8,6 @@ replicate keeps the lattice's faster-than-Monte-Carlo convergence.
 
 import numpy as np
 
-from . import sh
 
 # Golden ratio conjugate: the generator whose lattice spreads best for every point count.
 _GOLDEN = (np.sqrt(5.0) - 1.0) / 2.0
@@ -98,15 +97,6 @@ def cosine_lattice_directions(points, shifts, frames):
     return np.moveaxis(directions, 0, -1)
 
 
-def square_to_sphere(u):
-    """[0, 1)² (..., 2) → uniformly distributed unit directions (..., 3) (Archimedes' area-preserving map)."""
-    u = np.asarray(u, dtype=np.float64)
-    height = 1.0 - 2.0 * u[..., 0]
-    radius = 2.0 * np.sqrt(u[..., 0] * (1.0 - u[..., 0]))  # = sqrt(1 - height²) without cancellation
-    azimuth = 2.0 * np.pi * u[..., 1]
-    return np.stack([radius * np.cos(azimuth), radius * np.sin(azimuth), height], axis=-1)
-
-
 def orthonormal_basis(normals):
     """(tangents, bitangents) completing unit normals (N, 3) to right-handed frames (t × b = n).
 
@@ -120,45 +110,3 @@ def orthonormal_basis(normals):
     tangents = np.stack([1.0 + sign * x * x * a, sign * b, -sign * x], axis=-1)
     bitangents = np.stack([b, sign + y * y * a, -y], axis=-1)
     return tangents, bitangents
-
-
-def to_world(local_dirs, normals):
-    """Local directions (N, ..., 3), z along the normal, into world space with each vertex's frame from
-    orthonormal_basis; normals (N, 3). A leading axis of size 1 shares one set of directions."""
-    local_dirs = np.asarray(local_dirs, dtype=np.float64)
-    normals = np.asarray(normals, dtype=np.float64)
-    tangents, bitangents = orthonormal_basis(normals)
-    frame_shape = (len(normals),) + (1,) * (local_dirs.ndim - 2) + (3,)
-    return (local_dirs[..., 0:1] * tangents.reshape(frame_shape)
-            + local_dirs[..., 1:2] * bitangents.reshape(frame_shape)
-            + local_dirs[..., 2:3] * normals.reshape(frame_shape))
-
-
-def project_samples(values, directions, weights, order):
-    """Σ_i w_i·f(ω_i)·Y_k(ω_i) over the sample axis: values (..., S), directions (..., S, 3), weights
-    broadcastable to values → (..., order²)."""
-    weighted = np.asarray(values, dtype=np.float64) * weights
-    basis = sh.evaluate(order, directions)
-    return (weighted[..., None, :] @ basis)[..., 0, :]
-
-
-def _random_rotation(seed):
-    """A uniformly distributed rotation matrix from three hashed uniforms (Arvo, "Fast random rotation
-    matrices", Graphics Gems III): a random turn about Z, then a reflection that sends Z to a uniform
-    direction; negating makes the product a proper rotation."""
-    turn, azimuth, height = hash_uniform(seed, [0], 3)[0]
-    cos_turn, sin_turn = np.cos(2 * np.pi * turn), np.sin(2 * np.pi * turn)
-    turn_about_z = np.array([[cos_turn, sin_turn, 0.0], [-sin_turn, cos_turn, 0.0], [0.0, 0.0, 1.0]])
-    mirror_normal = np.array([np.cos(2 * np.pi * azimuth) * np.sqrt(height),
-                              np.sin(2 * np.pi * azimuth) * np.sqrt(height),
-                              np.sqrt(1.0 - height)])
-    reflection = np.eye(3) - 2.0 * np.outer(mirror_normal, mirror_normal)
-    return -reflection @ turn_about_z
-
-
-def sphere_directions(count, seed=0):
-    """Spherical Fibonacci set (count, 3) (z strata centred, golden-angle azimuths), rigidly rotated by a
-    uniform random rotation drawn from seed, so that every point is uniform on the sphere. Weights are 4π/count."""
-    lattice = fibonacci_lattice(count)
-    lattice[:, 0] += 0.5 / count
-    return square_to_sphere(lattice) @ _random_rotation(seed).T

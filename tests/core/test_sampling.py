@@ -1,9 +1,8 @@
-"""Sampling: hash quality, lattice maps and frames, convergence and honest replicate errors, speed."""
+"""Sampling: hash quality, the cosine lattice and frames, convergence and honest replicate errors."""
 
 import numpy as np
 from numpy.polynomial.legendre import leggauss
 from scipy import stats
-from scipy.special import spherical_in
 
 from quadrature import reference_sh
 
@@ -114,13 +113,6 @@ def test_cosine_lattice_directions_have_the_cosine_density():
     assert stats.kstest(azimuth, "uniform", args=(-np.pi, 2 * np.pi)).pvalue > 0.01
 
 
-def test_square_to_sphere_is_unit_and_uniform():
-    directions = sampling.square_to_sphere(np.random.default_rng(4).random((20000, 2)))
-    np.testing.assert_allclose(np.linalg.norm(directions, axis=-1), 1.0, rtol=1e-15)
-    for axis in range(3):  # Archimedes: every coordinate of a uniform direction is uniform on [-1, 1]
-        assert stats.kstest(directions[:, axis], "uniform", args=(-1, 2)).pvalue > 0.01
-
-
 def test_cosine_lattice_estimates_clamped_cosine_transfer_faster_than_monte_carlo():
     """mean Y_k(ω_i) over cosine-distributed ω_i estimates (1/π)∫ max(n·ω, 0)·Y_k = (Â_l/π)·Y_k(n)."""
     order, vertices = 4, 100
@@ -152,19 +144,6 @@ def test_orthonormal_basis_is_orthonormal_and_right_handed_everywhere():
     gram = frames @ frames.transpose(0, 2, 1)
     np.testing.assert_allclose(gram, np.broadcast_to(np.eye(3), gram.shape), rtol=0, atol=1e-12)
     np.testing.assert_allclose(np.cross(tangents, bitangents), normals, rtol=0, atol=1e-12)
-
-
-def test_to_world_follows_each_vertex_frame():
-    normals = random_unit_vectors(5, 7)
-    tangents, bitangents = sampling.orthonormal_basis(normals)
-    axes = np.array([[1.0, 0, 0], [0, 1.0, 0], [0, 0, 1.0]])
-    world = sampling.to_world(np.broadcast_to(axes, (5, 2, 3, 3)), normals)
-    assert world.shape == (5, 2, 3, 3)
-    for vertex in range(5):
-        np.testing.assert_allclose(world[vertex, 1], [tangents[vertex], bitangents[vertex], normals[vertex]],
-                                   rtol=0, atol=1e-15)
-    shared = sampling.to_world(axes[None], normals)  # one set of directions for every vertex
-    np.testing.assert_allclose(shared, world[:, 0], rtol=0, atol=1e-15)
 
 
 # --- estimators -----------------------------------------------------------------------------------------------
@@ -218,38 +197,3 @@ def test_replicate_standard_errors_are_honest_for_a_visibility_integrand():
     assert 0.7 < np.sqrt(np.mean(z ** 2)) < 1.4
     vector_z = np.linalg.norm(estimate - truth, axis=1) / np.linalg.norm(standard_error, axis=1)
     assert 0.7 < np.sqrt(np.mean(vector_z ** 2)) < 1.4
-
-
-def test_project_samples_of_fibonacci_sphere_converges_to_the_exact_projection():
-    """exp(κ·a·ω) = Σ_lm 4π·i_l(κ)·Y_lm(a)·Y_lm(ω) (i_l the modified spherical Bessel function)."""
-    order, kappa = 6, 2.0
-    axis = np.array([0.3, -0.5, 0.8]) / np.linalg.norm([0.3, -0.5, 0.8])
-    bands = np.repeat(np.arange(order), 2 * np.arange(order) + 1)
-    truth = 4 * np.pi * spherical_in(bands, kappa) * reference_sh(order, axis)
-    errors = []
-    for count in [100, 1000, 10000]:
-        directions = sampling.sphere_directions(count, seed=count)
-        projection = sampling.project_samples(np.exp(kappa * directions @ axis), directions, 4 * np.pi / count, order)
-        errors.append(np.abs(projection - truth).max())
-    assert errors[0] / errors[1] > 10 and errors[1] / errors[2] > 10
-    assert errors[2] < 5e-5 * np.abs(truth).max()
-
-
-def test_project_samples_broadcasts_leading_axes():
-    directions = random_unit_vectors(12, 10).reshape(2, 6, 3)
-    values = np.arange(12.0).reshape(2, 6)
-    result = sampling.project_samples(values, directions, 0.5, 3)
-    truth = 0.5 * np.einsum("vs,vsk->vk", values, reference_sh(3, directions))
-    np.testing.assert_allclose(result, truth, rtol=0, atol=1e-13)
-
-
-def test_sphere_directions_are_rigid_uniform_rotations_of_one_set():
-    first, second = sampling.sphere_directions(50, seed=1), sampling.sphere_directions(50, seed=2)
-    np.testing.assert_allclose(np.linalg.norm(first, axis=1), 1.0, rtol=1e-14)
-    np.testing.assert_allclose(first @ first.T, second @ second.T, rtol=0, atol=1e-13)  # same shape...
-    assert np.abs(first - second).max() > 0.1                                          # ...moved
-    np.testing.assert_array_equal(first, sampling.sphere_directions(50, seed=1))
-    # over seeds, any one point is uniform on the sphere
-    point = np.array([sampling.sphere_directions(10, seed)[3] for seed in range(3000)])
-    for axis in range(3):
-        assert stats.kstest(point[:, axis], "uniform", args=(-1, 2)).pvalue > 0.01
