@@ -1,5 +1,7 @@
 """Interreflections gathered over the shadow pass's hits: the stiff closed box and colour bleeding."""
 
+import sys
+
 import bpy  # noqa: F401  (mathutils comes with bpy)
 import numpy as np
 import pytest
@@ -126,3 +128,20 @@ def test_white_floor_turns_red_beside_a_red_wall():
     summary = the_job.summary([result])
     assert summary.bounces == 3 and len(summary.bounce_changes) == 3
     assert summary.bounce_changes[0] > summary.bounce_changes[1] > summary.bounce_changes[2] > 0
+
+
+@pytest.mark.parametrize("launch", [[sys.executable, "-c"], job.FORK], ids=["spawned", "forked"])
+def test_workers_bring_back_the_hit_records_bit_identically(launch):
+    """The bounces gather over every chunk's hit records, so the records must come back from the workers whole."""
+    vertices, triangles, normals = closed_box(cuts=6)
+    settings = bake.BakeSettings(mode="interreflected", order=3, samples=64, bounces=2)
+    albedo = np.full((len(vertices), 1), 0.7)
+    _, (one,) = interreflected_job(vertices, triangles, normals, albedo, order=3, samples=64, bounces=2)
+    two_workers = job.TransferJob([bake.Receiver("box", vertices, normals, 9)],
+                                  bake.Occluders(vertices, triangles, vertices.copy()), settings, workers=2,
+                                  worker_command=launch, albedo=[albedo])
+    two_workers.min_rays_for_workers, two_workers.worker_start_s = 0, 0.0
+    (two,) = two_workers.run()
+    assert len(two_workers.chunks) > 2 and sum(len(r.vertex) for r in two_workers.records) > 0
+    np.testing.assert_array_equal(one.transfer, two.transfer)
+    np.testing.assert_array_equal(one.std_error, two.std_error)
