@@ -315,7 +315,8 @@ def _replicate_means(world, occluded, order, replicates, values_at_once=1 << 22)
     step = max(1, values_at_once // (per_replicate * coefficients))
     for first in range(0, c * replicates, step):
         part = slice(first, first + step)
-        np.matmul(weights[part], sh.evaluate(order, directions[part]), out=means[part])
+        basis = sh.evaluate_components(order, directions[part].reshape(-1, 3))
+        np.matmul(weights[part], basis.T.reshape(-1, per_replicate, coefficients), out=means[part])
     means = means.reshape(c, replicates, 2, coefficients)
     return means[:, :, 0], means[:, :, 1]
 

@@ -100,6 +100,17 @@ def test_evaluation_in_blocks_matches_small_batches():
     assert np.array_equal(sh.evaluate(4, d), np.vstack([sh.evaluate(4, p) for p in pieces]))
 
 
+@pytest.mark.parametrize("order", [1, 4, 10])
+def test_components_are_the_transpose_of_evaluate_exactly(order):
+    d = random_directions(5000, seed=5)
+    d[:2] = [[0, 0, 1.0], [0, 0, -1.0]]
+    components = sh.evaluate_components(order, d)
+    assert components.shape == (order * order, 5000) and components.flags.c_contiguous
+    assert np.array_equal(components.T, sh.evaluate(order, d))
+    strided = np.moveaxis(np.ascontiguousarray(d.T).reshape(3, 50, 100), 0, -1)  # a bake round's layout
+    assert np.array_equal(sh.evaluate_components(order, strided), components)
+
+
 def test_rejects_order_beyond_max():
     with pytest.raises(ValueError):
         sh.evaluate(sh.MAX_ORDER + 1, POLES)
