@@ -47,7 +47,7 @@ class Config:
 
 
 FULL = Config(cast_vertices=2048, cast_repeats=7, error_vertices=300, reference_samples=16384,
-              bake_objects=None, max_samples=16384, worker_samples=256, worker_repeats=3)
+              bake_objects=None, max_samples=16384, worker_samples=256, worker_repeats=5)
 QUICK = Config(cast_vertices=256, cast_repeats=2, error_vertices=48, reference_samples=2048,
                bake_objects=["Floor"], max_samples=2048, worker_samples=64, worker_repeats=1)
 
