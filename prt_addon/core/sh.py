@@ -42,8 +42,7 @@ def evaluate(order, directions):
     Uses sin^m θ · e^{imφ} = (x + iy)^m and normalised Legendre recurrences in z, so no
     angles, no factorials and exact values at the poles.
     """
-    if not 0 <= order <= MAX_ORDER:
-        raise ValueError(f"order must be in [0, {MAX_ORDER}], got {order}")
+    _check_order(order)
     directions = np.asarray(directions, dtype=np.float64)
     flat = directions.reshape(-1, 3)
     values = np.empty((len(flat), order * order))
@@ -58,10 +57,16 @@ def evaluate_components(order, directions):
     """Y_k(d) as (order², N) for directions (N, 3): a contiguous row per coefficient, written without stride,
     so about 1.5× faster than evaluate() for the many directions of a bake round; its transpose equals
     evaluate()'s (N, order²) exactly."""
+    _check_order(order)
     directions = np.asarray(directions, dtype=np.float64).reshape(-1, 3)
     values = np.empty((order * order, len(directions)))
     _evaluate_into(values.T, order, directions)
     return values
+
+
+def _check_order(order):
+    if not 0 <= order <= MAX_ORDER:
+        raise ValueError(f"order must be in [0, {MAX_ORDER}], got {order}")
 
 
 def _evaluate_into(values, order, directions):

@@ -114,3 +114,5 @@ def test_components_are_the_transpose_of_evaluate_exactly(order):
 def test_rejects_order_beyond_max():
     with pytest.raises(ValueError):
         sh.evaluate(sh.MAX_ORDER + 1, POLES)
+    with pytest.raises(ValueError):
+        sh.evaluate_components(sh.MAX_ORDER + 1, POLES)
