@@ -2,8 +2,8 @@
 
     .venv/bin/python benchmarks/memory.py [--side 1000] [--samples 16]
 
-The bake streams fixed 64-vertex chunks, so rays never pile up: what it holds for the whole mesh is the
-receiver's positions and normals, the transfer and its error. The printed ratio is
+The bake streams fixed 128-vertex chunks, casting at most 65,536 rays at a time, so rays never pile up: what
+it holds for the whole mesh is the receiver's positions and normals, the transfer and its error. The printed ratio is
 (peak resident memory during the bake − resident memory before it) ÷ (vertices × n² × 4 bytes).
 """
 

@@ -130,6 +130,31 @@ def test_workers_give_bit_identical_results(launch):
     assert two_workers.done_vertices == 300  # the worker's progress lines arrived
 
 
+def test_batching_a_round_never_changes_a_result(monkeypatch):
+    """Rounds are cast RAYS_PER_BATCH rays at a time; each vertex keeps its own random streams, so any batch size
+    gives the same bits, target-error rounds included."""
+    rng = np.random.default_rng(6)
+    positions = np.column_stack([rng.uniform(-1.5, 1.5, (200, 2)), np.zeros(200)])
+    receiver = bake.Receiver("b", positions, np.tile([0.0, 0.0, 1.0], (200, 1)), 22)
+    settings = dict(order=4, samples=64, target_error=0.03, max_samples=1024)
+    (whole,), _ = run([receiver], disc(1.0, 1.0), **settings)
+    monkeypatch.setattr(bake, "RAYS_PER_BATCH", 300)  # a few vertices per batch, uneven last batches
+    yields = []
+    work = bake.bake_chunk(bake.RayCaster(disc(1.0, 1.0)), receiver, 0, bake.CHUNK_VERTICES,
+                           bake.BakeSettings(**settings))
+    try:
+        while True:
+            yields.append(next(work))
+    except StopIteration:
+        pass
+    assert len(yields) > 20 and np.median(yields) <= 300 and max(yields) <= 1024  # a vertex's round is never split
+    (batched,), _ = run([receiver], disc(1.0, 1.0), **settings)
+    np.testing.assert_array_equal(whole.transfer, batched.transfer)
+    np.testing.assert_array_equal(whole.std_error, batched.std_error)
+    np.testing.assert_array_equal(whole.rays, batched.rays)
+    assert whole.rays.max() > 64  # the target made more rounds
+
+
 @pytest.mark.parametrize("field, value", [("order", 0), ("order", 11), ("samples", 4), ("mode", "glossy"),
                                           ("target_error", float("nan")), ("replicates", 1)])
 def test_settings_out_of_range_are_named(field, value):

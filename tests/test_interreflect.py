@@ -133,7 +133,7 @@ def test_white_floor_turns_red_beside_a_red_wall():
 @pytest.mark.parametrize("launch", [[sys.executable, "-c"], job.FORK], ids=["spawned", "forked"])
 def test_workers_bring_back_the_hit_records_bit_identically(launch):
     """The bounces gather over every chunk's hit records, so the records must come back from the workers whole."""
-    vertices, triangles, normals = closed_box(cuts=6)
+    vertices, triangles, normals = closed_box(cuts=8)  # 386 vertices: 4 chunks
     settings = bake.BakeSettings(mode="interreflected", order=3, samples=64, bounces=2)
     albedo = np.full((len(vertices), 1), 0.7)
     _, (one,) = interreflected_job(vertices, triangles, normals, albedo, order=3, samples=64, bounces=2)
