@@ -110,3 +110,22 @@ def run_cli(*args, cwd=ROOT, timeout=600):
     env = dict(os.environ, PYTHONPATH=str(ROOT))
     return subprocess.run([sys.executable, "-m", "prt_addon", *map(str, args)], cwd=cwd, env=env,
                           capture_output=True, text=True, timeout=timeout)
+
+
+@pytest.fixture
+def chunks_baked_here(monkeypatch):
+    """Slows every chunk the test's own process bakes by 20 ms, so worker processes surely take some of a small
+    job; returns the starts of the chunks baked here. Forked workers run the same code in another process."""
+    import bpy  # noqa: F401  (before mathutils, which the core imports)
+    from prt_addon.core import bake
+    import time
+    here, real, baked = os.getpid(), bake.bake_chunk, []
+
+    def slowed(caster, receiver, start, stop, settings):
+        if os.getpid() == here:
+            baked.append(start)
+            time.sleep(0.02)
+        return real(caster, receiver, start, stop, settings)
+
+    monkeypatch.setattr(bake, "bake_chunk", slowed)
+    return baked

@@ -1,6 +1,9 @@
 """The shadowed estimator against closed forms, its error estimate against its actual error."""
 
+import os
 import sys
+import threading
+import time
 
 import bpy  # noqa: F401  (mathutils comes with bpy)
 import numpy as np
@@ -114,20 +117,60 @@ def test_target_error_is_met_per_vertex():
 
 
 @pytest.mark.parametrize("launch", [[sys.executable, "-c"], job.FORK], ids=["spawned", "forked"])
-def test_workers_give_bit_identical_results(launch):
+def test_workers_give_bit_identical_results(launch, chunks_baked_here):
     rng = np.random.default_rng(5)
-    positions = np.column_stack([rng.uniform(-1.5, 1.5, (300, 2)), np.zeros(300)])
-    receiver = bake.Receiver("w", positions, np.tile([0.0, 0.0, 1.0], (300, 1)), 21)
+    positions = np.column_stack([rng.uniform(-1.5, 1.5, (600, 2)), np.zeros(600)])
+    receiver = bake.Receiver("w", positions, np.tile([0.0, 0.0, 1.0], (600, 1)), 21)
     settings = bake.BakeSettings(order=4, samples=64, target_error=0.05, max_samples=1024)
     one = job.TransferJob([receiver], disc(1.0, 1.0), settings, workers=1).run()[0]
+    chunks_baked_here.clear()
     two_workers = job.TransferJob([receiver], disc(1.0, 1.0), settings, workers=2, worker_command=launch)
     two_workers.min_rays_for_workers = 0  # a job this small would otherwise stay in one process
-    two_workers.worker_start_s = 0.0      # and split evenly, so the worker really bakes half
+    two_workers.worker_start_s = 0.0      # and a spawned worker's share is not cut for its start-up
     two = two_workers.run()[0]
     np.testing.assert_array_equal(one.transfer, two.transfer)
     np.testing.assert_array_equal(one.std_error, two.std_error)
     np.testing.assert_array_equal(one.rays, two.rays)
-    assert two_workers.done_vertices == 300  # the worker's progress lines arrived
+    assert two_workers.done_vertices == 600  # the worker's progress lines arrived
+    assert 0 < len(chunks_baked_here) < len(two_workers.chunks)  # both processes baked
+
+
+def test_the_chunk_queue_hands_each_chunk_to_exactly_one_process_and_stops_when_abandoned():
+    chunks = job._ChunkQueue(range(50_000))  # more records than a pipe holds: the filler waits for readers
+    read_back, write_back = os.pipe()
+    child = os.fork()
+    if child == 0:  # a forked worker: takes chunks until the queue ends, reports them, leaves
+        chunks.in_worker()
+        os.close(read_back)
+        taken = np.fromiter(chunks, dtype=np.int64)
+        with os.fdopen(write_back, "wb") as out:
+            out.write(taken.tobytes())
+        os._exit(0)
+    os.close(write_back)
+    chunks.fill()
+    here = []
+    for index in chunks:
+        here.append(index)
+        if len(here) % 500 == 0:
+            time.sleep(0.001)  # the worker gets its share even on a busy machine
+    here = np.array(here)
+    with os.fdopen(read_back, "rb") as back:
+        there = np.frombuffer(back.read(), dtype=np.int64)
+    os.waitpid(child, 0)
+    chunks.close()
+    assert len(here) > 0 and len(there) > 0
+    np.testing.assert_array_equal(np.sort(np.concatenate([here, there])), np.arange(50_000))
+    assert np.all(np.diff(here) > 0) and np.all(np.diff(there) > 0)  # in order, none twice
+
+    abandoned = job._ChunkQueue(range(50_000))
+    before = threading.active_count()
+    abandoned.fill()
+    first = next(iter(abandoned))
+    abandoned.close()  # a cancelled bake: the filler, blocked on a full pipe, must end
+    deadline = time.monotonic() + 5.0
+    while threading.active_count() > before and time.monotonic() < deadline:
+        time.sleep(0.01)
+    assert first == 0 and threading.active_count() == before
 
 
 def test_batching_a_round_never_changes_a_result(monkeypatch):

@@ -2,6 +2,7 @@
 
 import os
 import sys
+import time
 
 import bpy
 import numpy as np
@@ -156,9 +157,12 @@ def test_a_forked_worker_failing_halfway_is_reported_and_keeps_the_previous_data
     real_bake_chunk, chunks_baked = job.bake.bake_chunk, []
 
     def failing_in_the_worker(*args):
-        chunks_baked.append(args[2])
-        if os.getpid() != baking_process and len(chunks_baked) == 3:
-            raise MemoryError("worker ran out of memory on its third chunk")
+        if os.getpid() == baking_process:
+            time.sleep(0.05)  # so the worker surely takes chunks from the shared queue
+        else:
+            chunks_baked.append(args[2])
+            if len(chunks_baked) == 3:
+                raise MemoryError("worker ran out of memory on its third chunk")
         return real_bake_chunk(*args)
 
     monkeypatch.setattr(job.bake, "bake_chunk", failing_in_the_worker)

@@ -66,10 +66,9 @@ class Summary:
 WORKER_MIN_RAYS = 2_000_000
 WORKER_START_S = 1.0
 # FORK as the worker command forks this process instead (Linux, bpy module): a few milliseconds, and the
-# workers share the ray tree already built here.
+# workers share the ray tree already built here. Forked workers take chunks from a shared queue as they go.
 FORK = "fork"
 FORK_MIN_RAYS = 200_000
-FORK_START_S = 0.01
 TYPICAL_RAYS_PER_S = 500_000  # one process on the demo scene, benchmarks/bake.py
 
 
@@ -100,9 +99,8 @@ class TransferJob:
         self.settings = settings
         self.workers = max(1, int(workers))
         self.worker_command = worker_command  # a command prefix (see worker_process_command) or FORK
-        forking = worker_command == FORK
-        self.min_rays_for_workers = FORK_MIN_RAYS if forking else WORKER_MIN_RAYS
-        self.worker_start_s = FORK_START_S if forking else WORKER_START_S
+        self.min_rays_for_workers = FORK_MIN_RAYS if worker_command == FORK else WORKER_MIN_RAYS
+        self.worker_start_s = WORKER_START_S  # spawned workers: this process takes the share they start late
         self.chunks = bake.chunk_ranges([len(r.positions) for r in receivers])
         self.total_vertices = sum(len(r.positions) for r in receivers)
         self._vertex_offsets = np.cumsum([0] + [len(r.positions) for r in receivers])
@@ -187,46 +185,57 @@ class TransferJob:
                 return
 
     def _run_workers(self):
-        """This process bakes its share of the chunks itself; N-1 worker processes bake the others."""
+        """This process and N-1 worker processes bake the chunks. Spawned workers get fixed shares (they start a
+        second late); forked workers and this process take the next chunk from a shared queue whenever they are
+        free, so all finish together however the machine's load falls on them."""
         with tempfile.TemporaryDirectory(prefix="prt_bake_") as folder:
             forking = self.worker_command == FORK
             caster = bake.RayCaster(self.occluders) if forking else None  # built once, before forking: shared
-            if not forking:
+            if forking:
+                queue_of_chunks = _ChunkQueue(range(len(self.chunks)))
+                mine = queue_of_chunks
+            else:
                 job_file = os.path.join(folder, "job.npz")
                 save_job(job_file, self.receivers, self.occluders, self.settings)
+                owners = chunk_owners(len(self.chunks), self.workers, self._estimated_seconds(), self.worker_start_s)
+                mine = [index for index, owner in enumerate(owners) if owner == 0]
             workers, lines = [], queue.Queue()
-            owners = chunk_owners(len(self.chunks), self.workers, self._estimated_seconds(), self.worker_start_s)
             try:
                 for worker in range(1, self.workers):
-                    theirs = [index for index, owner in enumerate(owners) if owner == worker]
-                    if not theirs:
-                        continue
                     out_file = os.path.join(folder, f"result_{worker}.npz")
                     if forking:
                         started = _ForkedWorker(functools.partial(
-                            bake_chunks, caster, self.receivers, self.settings, theirs, out_file), out_file + ".failed")
+                            bake_chunks, caster, self.receivers, self.settings, queue_of_chunks, out_file),
+                            out_file + ".failed", queue_of_chunks)
                     else:
+                        theirs = [index for index, owner in enumerate(owners) if owner == worker]
+                        if not theirs:
+                            continue
                         started = _SpawnedWorker(worker_process_command(self.worker_command, job_file, out_file,
                                                                         theirs))
                     threading.Thread(target=_read_lines, args=(started.stdout, lines), daemon=True).start()
-                    workers.append((started, out_file, theirs))
+                    workers.append((started, out_file))
+                if forking:
+                    queue_of_chunks.fill()
                 caster = caster or bake.RayCaster(self.occluders)  # spawned workers start meanwhile
                 running = len(workers)
-                for chunk_index in (index for index, owner in enumerate(owners) if owner == 0):
+                for chunk_index in mine:
                     yield from self._bake_chunk_here(caster, chunk_index)
                     running -= self._take_progress(lines, wait=0.0)
                 while running:
                     running -= self._take_progress(lines, wait=0.05)
                     yield
-                for started, out_file, theirs in workers:
+                for started, out_file in workers:
                     failure = started.finish()
                     if failure is not None:
                         raise RuntimeError("bake worker failed: " + failure)
-                    for chunk_index, result in zip(theirs, load_results(out_file)):
+                    for chunk_index, result in load_results(out_file):
                         self._store(chunk_index, result)
             finally:
-                for started, _, _ in workers:
+                for started, _ in workers:
                     started.kill()
+                if forking:
+                    queue_of_chunks.close()
 
     def _estimated_seconds(self) -> float:
         """One process's time for the whole job, from the first round's rays at a typical rate."""
@@ -337,16 +346,51 @@ class _SpawnedWorker:
             self.process.wait()
 
 
+class _ChunkQueue:
+    """Chunk indices in a pipe shared by this process and its forked workers. Each read of one 4-byte record
+    takes the next chunk atomically, so whichever process is free bakes it. Fill it after forking: a thread
+    writes the records in blocks of at most PIPE_BUF bytes (whole records, atomic) and then closes the pipe, so
+    a read that finds it empty and closed ends the queue."""
+
+    def __init__(self, indices):
+        self._records = np.asarray(list(indices), dtype="<i4").tobytes()
+        self._read, self._write = os.pipe()
+
+    def fill(self):
+        threading.Thread(target=self._feed, daemon=True).start()
+
+    def _feed(self):
+        try:
+            for start in range(0, len(self._records), 4096):
+                os.write(self._write, self._records[start:start + 4096])
+        except OSError:  # everyone stopped reading: a cancelled or failed bake
+            pass
+        finally:
+            os.close(self._write)
+
+    def in_worker(self):
+        """A forked worker keeps only the reading end: the queue ends when this process's writer closes."""
+        os.close(self._write)
+
+    def __iter__(self):
+        while record := os.read(self._read, 4):
+            yield int.from_bytes(record, "little")
+
+    def close(self):
+        os.close(self._read)
+
+
 class _ForkedWorker:
     """A fork of this process running work(stream): it inherits the scene and the ray tree, so it starts in
     milliseconds. It leaves with os._exit, never running this process's exit handlers."""
 
-    def __init__(self, work, failure_file):
+    def __init__(self, work, failure_file, chunks: _ChunkQueue):
         read, write = os.pipe()
         self._failure_file = failure_file
         self.pid = os.fork()
         if self.pid == 0:
             os.close(read)
+            chunks.in_worker()
             code = 1
             try:
                 with os.fdopen(write, "w") as stream:
@@ -416,11 +460,12 @@ def load_job(path):
     return receivers, occluders, bake.BakeSettings(**meta["settings"])
 
 
-def load_results(path) -> list[bake.ChunkResult]:
+def load_results(path) -> list[tuple[int, bake.ChunkResult]]:
+    """(chunk index, result) for every chunk a worker baked."""
     with np.load(path) as data:
-        return [bake.ChunkResult(data[f"transfer_{i}"], data[f"std_error_{i}"], data[f"rays_{i}"],
-                                 data[f"skipped_{i}"], _load_records(data, i))
-                for i in range(int(data["count"]))]
+        return [(int(chunk_index), bake.ChunkResult(data[f"transfer_{i}"], data[f"std_error_{i}"], data[f"rays_{i}"],
+                                                     data[f"skipped_{i}"], _load_records(data, i)))
+                for i, chunk_index in enumerate(data["chunks"])]
 
 
 def _load_records(data, slot):
@@ -431,9 +476,10 @@ def _load_records(data, slot):
 
 
 def bake_chunks(caster, receivers, settings, chunk_indices, out_file, stream):
-    """A worker's work: bakes its chunks with a progress line on `stream` after each, saves the results."""
+    """A worker's work: bakes the chunks it is given (a list, or a shared queue it takes them from) with a
+    progress line on `stream` after each, then saves the results and which chunks they are."""
     chunks = bake.chunk_ranges([len(r.positions) for r in receivers])
-    arrays = {"count": np.array(len(chunk_indices))}
+    arrays, done = {}, []
     for slot, chunk_index in enumerate(chunk_indices):
         receiver_index, start, stop = chunks[chunk_index]
         work = bake.bake_chunk(caster, receivers[receiver_index], start, stop, settings)
@@ -449,8 +495,9 @@ def bake_chunks(caster, receivers, settings, chunk_indices, out_file, stream):
         if result.records is not None:
             for name in ("vertex", "triangle", "barycentric", "weight"):
                 arrays[f"records_{name}_{slot}"] = getattr(result.records, name)
+        done.append(chunk_index)
         print(f"PRT-PROGRESS {stop - start} {rays}", file=stream, flush=True)
-    np.savez(out_file, **arrays)
+    np.savez(out_file, chunks=np.array(done, dtype=np.int64), **arrays)
 
 
 def worker_main(job_file, out_file, chunk_indices):
