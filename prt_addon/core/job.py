@@ -355,8 +355,10 @@ class _ChunkQueue:
     def __init__(self, indices):
         self._records = np.asarray(list(indices), dtype="<i4").tobytes()
         self._read, self._write = os.pipe()
+        self._filling = False
 
     def fill(self):
+        self._filling = True
         threading.Thread(target=self._feed, daemon=True).start()
 
     def _feed(self):
@@ -378,6 +380,8 @@ class _ChunkQueue:
 
     def close(self):
         os.close(self._read)
+        if not self._filling:  # the bake stopped before the queue was filled: its writer closes nothing
+            os.close(self._write)
 
 
 class _ForkedWorker:
@@ -388,11 +392,11 @@ class _ForkedWorker:
         read, write = os.pipe()
         self._failure_file = failure_file
         self.pid = os.fork()
-        if self.pid == 0:
-            os.close(read)
-            chunks.in_worker()
+        if self.pid == 0:  # the child: nothing may escape into the parent's code it was forked from
             code = 1
             try:
+                os.close(read)
+                chunks.in_worker()
                 with os.fdopen(write, "w") as stream:
                     work(stream)
                 code = 0
