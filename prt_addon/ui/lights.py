@@ -14,6 +14,7 @@ from mathutils import Vector
 
 from ..core import lights, shading
 from .panels import SidebarPanel
+from .registration import classes_and_properties
 
 KINDS = [
     ("SUN", "Sun", "A disc of light from one direction, optionally following a Sun light object", "LIGHT_SUN", 0),
@@ -244,17 +245,8 @@ classes = (PRT_PG_light, PRT_PG_display, PRT_UL_lights, PRT_OT_light_add, PRT_OT
            PRT_PT_lights, PRT_PT_display)
 
 
-def register():
-    for cls in classes:
-        bpy.utils.register_class(cls)
-    bpy.types.Scene.prt_lights = CollectionProperty(type=PRT_PG_light)
-    bpy.types.Scene.prt_active_light = IntProperty(name="Active SH Light", default=0, min=0)
-    bpy.types.Scene.prt_display = PointerProperty(type=PRT_PG_display)
-
-
-def unregister():
-    del bpy.types.Scene.prt_display
-    del bpy.types.Scene.prt_active_light
-    del bpy.types.Scene.prt_lights
-    for cls in reversed(classes):
-        bpy.utils.unregister_class(cls)
+register, unregister = classes_and_properties(classes, [
+    (bpy.types.Scene, "prt_lights", CollectionProperty(type=PRT_PG_light)),
+    (bpy.types.Scene, "prt_active_light", IntProperty(name="Active SH Light", default=0, min=0)),
+    (bpy.types.Scene, "prt_display", PointerProperty(type=PRT_PG_display)),
+])

@@ -4,6 +4,7 @@ import bpy
 from bpy.props import EnumProperty, FloatProperty, IntProperty, PointerProperty
 
 from ..core import bake
+from .registration import classes_and_properties
 
 
 class PRT_PG_bake_settings(bpy.types.PropertyGroup):
@@ -53,15 +54,7 @@ class PRT_PG_bake_status(bpy.types.PropertyGroup):
 classes = (PRT_PG_bake_settings, PRT_PG_bake_status)
 
 
-def register():
-    for cls in classes:
-        bpy.utils.register_class(cls)
-    bpy.types.Scene.prt_bake = PointerProperty(type=PRT_PG_bake_settings)
-    bpy.types.WindowManager.prt_bake_status = PointerProperty(type=PRT_PG_bake_status)
-
-
-def unregister():
-    del bpy.types.WindowManager.prt_bake_status
-    del bpy.types.Scene.prt_bake
-    for cls in reversed(classes):
-        bpy.utils.unregister_class(cls)
+register, unregister = classes_and_properties(classes, [
+    (bpy.types.Scene, "prt_bake", PointerProperty(type=PRT_PG_bake_settings)),
+    (bpy.types.WindowManager, "prt_bake_status", PointerProperty(type=PRT_PG_bake_status)),
+])

@@ -7,6 +7,7 @@ from bpy.props import CollectionProperty, FloatProperty, IntProperty, PointerPro
 from .. import validate
 from .operators import ModalJob
 from .panels import SidebarPanel
+from .registration import classes_and_properties
 from .properties import PRT_PG_bake_status
 
 
@@ -111,17 +112,8 @@ class PRT_PT_validate(SidebarPanel, bpy.types.Panel):
 classes = (PRT_PG_validate_settings, PRT_PG_compared, PRT_PG_validation_result, PRT_OT_validate, PRT_PT_validate)
 
 
-def register():
-    for cls in classes:
-        bpy.utils.register_class(cls)
-    bpy.types.Scene.prt_validate = PointerProperty(type=PRT_PG_validate_settings)
-    bpy.types.WindowManager.prt_validate_status = PointerProperty(type=PRT_PG_bake_status)
-    bpy.types.WindowManager.prt_validation = PointerProperty(type=PRT_PG_validation_result)
-
-
-def unregister():
-    del bpy.types.WindowManager.prt_validation
-    del bpy.types.WindowManager.prt_validate_status
-    del bpy.types.Scene.prt_validate
-    for cls in reversed(classes):
-        bpy.utils.unregister_class(cls)
+register, unregister = classes_and_properties(classes, [
+    (bpy.types.Scene, "prt_validate", PointerProperty(type=PRT_PG_validate_settings)),
+    (bpy.types.WindowManager, "prt_validate_status", PointerProperty(type=PRT_PG_bake_status)),
+    (bpy.types.WindowManager, "prt_validation", PointerProperty(type=PRT_PG_validation_result)),
+])
