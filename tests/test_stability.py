@@ -2,7 +2,6 @@
 
 import os
 import sys
-import time
 
 import bpy
 import numpy as np
@@ -135,41 +134,38 @@ def test_object_transforms_scale_and_offset_do_not_change_the_bake(empty_scene, 
     np.testing.assert_allclose(moved, reference, atol=1e-5)
 
 
-def test_a_bake_failing_halfway_keeps_the_previous_data(empty_scene):
-    floor, _ = grid("Floor", cuts=30), box("Cube")
-    bake_objects(["Floor"], order=3)
-    before, meta_before = transfer_of(floor)
-    scene_bake = SceneBake(bpy.context, BakeSettings(order=4, samples=64), ["Floor"], workers=2)
+def spawned_worker_out_of_memory(scene_bake, monkeypatch):
     scene_bake.job.worker_command = [sys.executable, "-c", "import sys; sys.exit('worker ran out of memory')"]
-    scene_bake.job.min_rays_for_workers, scene_bake.job.worker_start_s = 0, 0.0
-    with pytest.raises(RuntimeError, match="worker ran out of memory"):
-        scene_bake.run(log=lambda line: None)
-    after, meta_after = transfer_of(floor)
-    np.testing.assert_array_equal(before, after)
-    assert meta_before == meta_after
+    scene_bake.job.worker_start_s = 0.0
+    return "worker ran out of memory"
 
 
-def test_a_forked_worker_failing_halfway_is_reported_and_keeps_the_previous_data(empty_scene, monkeypatch):
-    floor, _ = grid("Floor", cuts=30), box("Cube")
-    bake_objects(["Floor"], order=3)
-    before, meta_before = transfer_of(floor)
-    baking_process = os.getpid()
-    real_bake_chunk, chunks_baked = job.bake.bake_chunk, []
+def forked_worker_out_of_memory_on_its_third_chunk(scene_bake, monkeypatch):
+    assert scene_bake.job.worker_command == job.FORK
+    baking_process, slowed_here, chunks_baked = os.getpid(), job.bake.bake_chunk, []
 
     def failing_in_the_worker(*args):
-        if os.getpid() == baking_process:
-            time.sleep(0.05)  # so the worker surely takes chunks from the shared queue
-        else:
+        if os.getpid() != baking_process:
             chunks_baked.append(args[2])
             if len(chunks_baked) == 3:
                 raise MemoryError("worker ran out of memory on its third chunk")
-        return real_bake_chunk(*args)
+        return slowed_here(*args)
 
     monkeypatch.setattr(job.bake, "bake_chunk", failing_in_the_worker)
+    return "MemoryError: worker ran out of memory on its third chunk"
+
+
+@pytest.mark.parametrize("make_a_worker_fail", [spawned_worker_out_of_memory,
+                                                forked_worker_out_of_memory_on_its_third_chunk])
+def test_a_worker_failing_halfway_is_reported_and_keeps_the_previous_data(empty_scene, monkeypatch,
+                                                                          chunks_baked_here, make_a_worker_fail):
+    floor, _ = grid("Floor", cuts=30), box("Cube")
+    bake_objects(["Floor"], order=3)
+    before, meta_before = transfer_of(floor)
     scene_bake = SceneBake(bpy.context, BakeSettings(order=4, samples=64), ["Floor"], workers=2)
-    assert scene_bake.job.worker_command == job.FORK
     scene_bake.job.min_rays_for_workers = 0
-    with pytest.raises(RuntimeError, match="MemoryError: worker ran out of memory on its third chunk"):
+    message = make_a_worker_fail(scene_bake, monkeypatch)
+    with pytest.raises(RuntimeError, match=message):
         scene_bake.run(log=lambda line: None)
     after, meta_after = transfer_of(floor)
     np.testing.assert_array_equal(before, after)

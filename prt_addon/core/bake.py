@@ -178,7 +178,7 @@ class RayCaster:
         found = np.array(list(map(itemgetter(2, 3), casts)), dtype=np.float64).reshape(c, k, 2)
         distance = found[..., 1]
         occluded = ~np.isnan(distance)
-        return occluded, np.where(occluded, np.nan_to_num(found[..., 0], nan=-1.0), -1).astype(np.int64), distance
+        return occluded, np.nan_to_num(found[..., 0], nan=-1.0).astype(np.int64), distance  # both NaN on a miss
 
     def _casts(self, origins, directions: np.ndarray):
         """ray_cast results of directions (c, k, 3) from c origins, lazily, looped in C by map(). Directions are
