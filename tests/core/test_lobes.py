@@ -239,7 +239,9 @@ def test_projection_reads_only_the_requested_channels_and_chunks_consistently(mo
     whole = lobes.project_equirect(pixels, 3, channels=3)
     pixels[..., 3] = 1e6  # alpha must not leak into colour
     monkeypatch.setattr(lobes, "_CHUNK_VALUES", 48 * 9 * 5)  # 5 rows per chunk: a ragged last chunk
-    np.testing.assert_allclose(lobes.project_equirect(pixels, 3, channels=3), whole, rtol=1e-13)
+    # Chunks change the order of the sums: equal to rounding, relative to the largest coefficient.
+    np.testing.assert_allclose(lobes.project_equirect(pixels, 3, channels=3), whole, rtol=0,
+                               atol=1e-14 * np.abs(whole).max())
     assert lobes.project_equirect(pixels, 3, channels=1).shape == (1, 9)
 
 
