@@ -18,7 +18,7 @@ import bpy
 import numpy as np
 
 from . import display
-from .core import bake
+from .core import bake, polygons
 
 ATTRIBUTE_PREFIX = "_prt_"
 ERROR_ATTRIBUTE = "_prt_error"
@@ -175,6 +175,7 @@ def occluders_from_depsgraph(depsgraph, surfaces=()) -> tuple[bake.Occluders, se
     offsets = np.cumsum([0] + [len(block) for block in vertex_blocks])
     triangle_blocks = [s.triangles + offset for s, offset in zip(surfaces, offsets)]
     count, sources, meshes = int(offsets[-1]), set(), {}
+    flat = [polygons.convex_polygon(s.receiver.positions, s.triangles) for s in surfaces]
     baked = {s.receiver.name for s in surfaces}
     for instance in depsgraph.object_instances:
         ob = instance.object
@@ -197,6 +198,7 @@ def occluders_from_depsgraph(depsgraph, surfaces=()) -> tuple[bake.Occluders, se
         keep = finite[triangles].all(1)  # drop triangles that touch non-finite vertices
         vertex_blocks.append(np.where(finite[:, None], world, 0.0))
         triangle_blocks.append(triangles[keep] + count)
+        flat.append(polygons.convex_polygon(world, triangles) if keep.all() else None)
         count += len(world)
     sources |= baked
     if not count:
@@ -205,7 +207,8 @@ def occluders_from_depsgraph(depsgraph, surfaces=()) -> tuple[bake.Occluders, se
     triangles = np.concatenate(triangle_blocks)
     if not len(triangles):
         return bake.Occluders(vertices, triangles, np.zeros((0, 3))), sources
-    return bake.Occluders(vertices, triangles, convex_hull_points(vertices[np.unique(triangles)])), sources
+    found = polygons.largest([polygon for polygon in flat if polygon is not None], polygons.MAX_POLYGONS)
+    return bake.Occluders(vertices, triangles, convex_hull_points(vertices[np.unique(triangles)]), found), sources
 
 
 def convex_hull_points(points: np.ndarray) -> np.ndarray:

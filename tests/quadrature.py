@@ -35,3 +35,45 @@ def reference_sh(order, directions):
             part = y.real if m >= 0 else y.imag
             values[..., l * (l + 1) + m] = part if m == 0 else np.sqrt(2.0) * part
     return values
+
+
+def polygon_directions(apex, polygon, nodes=48):
+    """Directions from `apex` to a flat convex polygon (m, 3), with solid-angle weights: a fan of triangles,
+    each by collapsed Gauss-Legendre (Duffy), dω = h dA / |x|³ with h the apex's distance to the plane. Smooth
+    and accurate when the apex is not close to the polygon's plane."""
+    s, ws = np.polynomial.legendre.leggauss(nodes)
+    s, ws = 0.5 * (s + 1.0), 0.5 * ws
+    u, v = np.meshgrid(s, s, indexing="ij")
+    weight = np.outer(ws, ws) * u
+    directions, weights = [], []
+    for b, c in zip(polygon[1:-1], polygon[2:]):
+        a = polygon[0]
+        points = a + u[..., None] * (b - a) + (u * v)[..., None] * (c - b)
+        area_vector = np.cross(b - a, c - a)
+        x = points - apex
+        distance = np.linalg.norm(x, axis=-1)
+        height = abs(np.dot(area_vector, a - apex)) / np.linalg.norm(area_vector)
+        directions.append((x / distance[..., None]).reshape(-1, 3))
+        weights.append((weight * np.linalg.norm(area_vector) * height / distance**3).ravel())
+    return np.concatenate(directions), np.concatenate(weights)
+
+
+def clip_below(polygon, apex, normal):
+    """The flat polygon's part above the plane through `apex` with `normal` (the test's own clipping)."""
+    kept = []
+    for p, q in zip(polygon, np.roll(polygon, -1, axis=0)):
+        hp, hq = np.dot(p - apex, normal), np.dot(q - apex, normal)
+        if hp >= 0:
+            kept.append(p)
+        if (hp >= 0) != (hq >= 0):
+            kept.append(p + hp / (hp - hq) * (q - p))
+    return np.array(kept)
+
+
+def polygon_transfer(order, apex, normal, polygon):
+    """(1/π) ∫ (n·ω)₊ Y_k dω over the polygon's directions, with scipy's SH."""
+    part = clip_below(polygon, apex, normal)
+    if len(part) < 3:
+        return np.zeros(order * order)
+    directions, weights = polygon_directions(apex, part)
+    return (weights * (directions @ normal)) @ reference_sh(order, directions) / np.pi

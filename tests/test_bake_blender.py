@@ -92,6 +92,21 @@ def test_unselected_scene_bakes_every_visible_mesh_and_hidden_ones_do_not_occlud
                                atol=1e-6)
 
 
+def test_flat_objects_become_closed_form_occluders_in_world_space(empty_scene):
+    floor, cube = grid("Floor"), box("Cube", location=(3.0, 0.0, 1.0))
+    shelf = grid("Shelf", size=1.0, cuts=3)
+    shelf.location, shelf.rotation_euler = (0.0, 0.0, 1.5), (np.pi, 0.0, 0.0)  # facing down at the floor
+    hidden = grid("Hidden", size=8.0)
+    hidden.hide_set(True)
+    occluders = SceneBake(bpy.context, BakeSettings(samples=16), ["Floor"]).job.occluders
+    floor_corners, shelf_corners = occluders.polygons  # the largest first; not the cube, not the hidden plane
+    assert len(floor_corners) == len(shelf_corners) == 4
+    np.testing.assert_allclose(sorted(map(tuple, floor_corners)),
+                               [(-2, -2, 0), (-2, 2, 0), (2, -2, 0), (2, 2, 0)], atol=1e-6)
+    np.testing.assert_allclose(sorted(map(tuple, shelf_corners)),
+                               [(-0.5, -0.5, 1.5), (-0.5, 0.5, 1.5), (0.5, -0.5, 1.5), (0.5, 0.5, 1.5)], atol=1e-6)
+
+
 def test_array_modifier_copies_cast_shadows(empty_scene):
     floor, cube = grid("Floor"), box("Cube", location=(-1.5, 0.0, 0.7), half=0.3)
     array = cube.modifiers.new("Array", "ARRAY")

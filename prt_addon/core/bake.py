@@ -11,7 +11,7 @@ Shadowed estimator (what makes it cheap compared with the seed's uniform-sphere 
 - with a target error, rounds double the rays per replicate until each vertex meets the target.
 """
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from itertools import chain, repeat
 import math
 from operator import is_not, itemgetter
@@ -19,7 +19,7 @@ import zlib
 
 import numpy as np
 
-from . import interreflect, lobes, sampling, sh
+from . import interreflect, lobes, polygons, sampling, sh
 
 MODES = ("unshadowed", "shadowed", "interreflected")
 MAX_ORDER = 10
@@ -104,10 +104,12 @@ class Receiver:
 
 @dataclass
 class Occluders:
-    """Triangles that cast shadows, in world space, and the points whose hull bounds them."""
+    """Triangles that cast shadows, in world space, the points whose hull bounds them, and flat convex polygons
+    among them whose shadows are integrated in closed form."""
     vertices: np.ndarray   # (P, 3) float64
     triangles: np.ndarray  # (T, 3) int
     hull: np.ndarray       # (H, 3) float64: any superset of the convex hull's vertices
+    polygons: list = field(default_factory=list)  # (m, 3) float64 corners each; see polygons.py
 
     @property
     def center(self) -> np.ndarray:
@@ -165,6 +167,7 @@ class RayCaster:
         self.hull = occluders.hull - self.center
         self.vertices = occluders.vertices - self.center
         self.triangles = occluders.triangles
+        self.polygons = [polygon - self.center for polygon in occluders.polygons]
         self.tree = BVHTree.FromPolygons(self.vertices.tolist(), self.triangles.tolist(), all_triangles=True)
 
     def occluded(self, origins: np.ndarray, directions: np.ndarray, hits: bool = False):
@@ -208,6 +211,7 @@ def shadowed_chunk(caster: RayCaster, positions, normals, inward, keys, settings
     tangents, bitangents = sampling.orthonormal_basis(np.where(has_surface[:, None], normals, [0.0, 0.0, 1.0]))
     frames = np.stack([tangents, bitangents, normals], axis=1)
     origins = positions + caster.offset * (normals + inward)
+    cones, flat_blocked = _flat_shadows(caster, origins, normals, order)
     rounds = []  # (vertices, rays per vertex, transfer mean, transfer variance), combined below
     hits = [] if settings.mode == "interreflected" else None  # (chunk vertex, triangle, barycentric) per round
     groups = [(settings.points_per_replicate, np.flatnonzero(has_surface & ~skipped))]
@@ -220,9 +224,10 @@ def shadowed_chunk(caster: RayCaster, positions, normals, inward, keys, settings
             # batches. Every vertex keeps its own random streams, so batching never changes a result.
             batch = max(1, RAYS_PER_BATCH // (replicates * per_replicate))
             for vertices in np.array_split(group, np.arange(batch, len(group), batch)):
+                flat = None if cones is None else cones[vertices], flat_blocked[vertices]
                 mean, variance, round_hits = _blocked_round(caster, origins[vertices], frames[vertices],
-                                                            unshadowed[vertices], keys[vertices], round_index,
-                                                            per_replicate, settings)
+                                                            unshadowed[vertices], flat, keys[vertices],
+                                                            round_index, per_replicate, settings)
                 if hits is not None:
                     hits.append((vertices[round_hits[0]], *round_hits[1:]))
                 rounds.append((vertices, replicates * per_replicate, mean, variance))
@@ -238,6 +243,17 @@ def shadowed_chunk(caster: RayCaster, positions, normals, inward, keys, settings
     transfer, error = _combine(rounds, rays, count, order)
     transfer[rays == 0] = unshadowed[rays == 0]  # exact: provably unoccluded, or no surface (zero)
     return ChunkResult(transfer, error, rays, skipped, _records(hits, rays))
+
+
+def _flat_shadows(caster, origins, normals, order):
+    """The closed-form part of a chunk: the cone planes (c, P, m, 3) of the flat polygons some vertex has above
+    its tangent plane (None if there are none), and the transfer (c, order²) they block, seen from the ray
+    origins."""
+    seen = [polygon for polygon in caster.polygons
+            if (normals @ polygon.T > np.einsum("ij,ij->i", normals, origins)[:, None]).any()]
+    if not seen:
+        return None, np.zeros((len(origins), order * order))
+    return polygons.cone_planes(origins, seen), polygons.blocked_transfer(order, origins, normals, seen)
 
 
 def _records(hits, rays):
@@ -284,13 +300,16 @@ def _combine(rounds, rays, count, order):
     return estimate, np.sqrt(variance.sum(1))
 
 
-def _blocked_round(caster, origins, frames, unshadowed, keys, round_index, per_replicate, settings):
+def _blocked_round(caster, origins, frames, unshadowed, flat, keys, round_index, per_replicate, settings):
     """One round: R replicates of a shifted lattice per vertex. Returns the mean and variance over replicates
     of the transfer estimate, and the hits (interreflected mode).
 
     Each replicate estimates T = β·T_unshadowed + mean((V − β)·Y), a control variate whose coefficient β is
     the vertex's visible fraction this round: β = 1 samples only blocked light (exact for an open vertex),
-    β = 0 only visible light (exact for a buried one), in between it tracks the optimal coefficient."""
+    β = 0 only visible light (exact for a buried one), in between it tracks the optimal coefficient.
+    Flat polygons (`flat`: their cone planes and the transfer G they block) are exact: a ray counts as blocked
+    only for what they do not explain, 1 − V − g with g its hits on them, and G is subtracted; unbiased for any
+    polygon, and P's edges add no noise where P really is occluder geometry."""
     replicates, order = settings.replicates, settings.order
     c, rays = len(keys), replicates * per_replicate
     stream = keys[:, None] * STREAMS_PER_VERTEX + round_index * replicates + np.arange(replicates)[None, :]
@@ -302,9 +321,13 @@ def _blocked_round(caster, origins, frames, unshadowed, keys, round_index, per_r
         round_hits = _round_hits(caster, origins, world, occluded, triangle, distance)
     else:
         occluded, round_hits = caster.occluded(origins, world), None
+    cones, flat_blocked = flat
+    if cones is not None:
+        occluded = occluded - polygons.hits(world, cones)
     all_rays, blocked = _replicate_means(world, occluded, order, replicates)
     beta = 1.0 - occluded.mean(axis=1)[:, None, None]
     estimate = beta * unshadowed[:, None, :] + (1.0 - beta) * all_rays - blocked  # (c, R, n²)
+    estimate -= flat_blocked[:, None, :]
     return estimate.mean(1), estimate.var(1, ddof=1) / replicates, round_hits
 
 

@@ -445,6 +445,7 @@ def worker_process_command(python_prefix, job_file, out_file, chunk_indices):
 def save_job(path, receivers, occluders, settings: bake.BakeSettings):
     arrays = {"occluder_vertices": occluders.vertices, "occluder_triangles": occluders.triangles,
               "occluder_hull": occluders.hull}
+    arrays.update({f"polygon_{index}": polygon for index, polygon in enumerate(occluders.polygons)})
     for index, receiver in enumerate(receivers):
         arrays[f"positions_{index}"] = receiver.positions
         arrays[f"normals_{index}"] = receiver.normals
@@ -457,7 +458,8 @@ def save_job(path, receivers, occluders, settings: bake.BakeSettings):
 def load_job(path):
     with np.load(path) as data:
         meta = json.loads(str(data["meta"]))
-        occluders = bake.Occluders(data["occluder_vertices"], data["occluder_triangles"], data["occluder_hull"])
+        flat = [data[f"polygon_{index}"] for index in range(sum(name.startswith("polygon_") for name in data.files))]
+        occluders = bake.Occluders(data["occluder_vertices"], data["occluder_triangles"], data["occluder_hull"], flat)
         receivers = [bake.Receiver(name, data[f"positions_{i}"], data[f"normals_{i}"], key,
                                    data[f"inward_{i}"] if f"inward_{i}" in data else None)
                      for i, (name, key) in enumerate(meta["receivers"])]

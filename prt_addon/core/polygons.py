@@ -1,0 +1,314 @@
+"""Flat convex occluders in closed form: the transfer they block, and which rays they stop.
+
+The long straight edges of a floor, a wall or a ground plane are where a ray estimator's error comes from. For a
+convex polygon P seen from a vertex, the transfer P blocks, G_k = (1/π) ∫ over P's directions above the tangent
+plane of (n·ω) Y_k(ω) dω, has a closed form (axial moments over a spherical polygon, Arvo 1995, with each SH band
+written as a sum of zonal lobes, Wang & Ramamoorthi 2018), and whether a ray's direction hits P is a few dot
+products. The bake then sends rays only for what P does not explain (bake.py), so P's edges add no noise.
+"""
+
+from functools import lru_cache
+import math
+
+import numpy as np
+from numpy.polynomial import legendre
+
+from . import sh
+
+# Detection: coplanar to this fraction of the object's size, and its triangles cover their convex hull to this
+# fraction of its area (a hole or a notch would only cost accuracy, never correctness, but then gains nothing).
+PLANAR_TOLERANCE = 1e-6
+COVER_TOLERANCE = 1e-6
+MAX_EDGES = 16
+# Polygons kept per bake, the largest first.
+MAX_POLYGONS = 8
+
+
+def convex_polygon(vertices, triangles):
+    """(m, 3) corners, counter-clockwise about the triangles' common normal, of the convex polygon that these
+    triangles exactly tile; None when they are not flat, do not face one way, or do not tile a convex polygon
+    of at most MAX_EDGES corners. Vertices not used by a triangle count too (a flat object with stray points
+    off its plane is not taken)."""
+    if len(triangles) == 0 or not np.isfinite(vertices).all():
+        return None
+    size = float(np.ptp(vertices, axis=0).max())
+    # Most objects are not flat: a plane from a few triangles rejects them before any per-triangle work.
+    guess = _area_vector(vertices, triangles[:64])
+    if not np.linalg.norm(guess) > 0.0 or np.abs((vertices - vertices[0]) @ guess).max() \
+            > PLANAR_TOLERANCE * size * np.linalg.norm(guess):
+        return None
+    total = _area_vector(vertices, triangles)
+    area = 0.5 * float(sum(np.linalg.norm(_triangle_crosses(vertices, part), axis=1).sum()
+                           for part in np.array_split(triangles, max(1, len(triangles) >> 16))))
+    if not area > 0.0 or 0.5 * np.linalg.norm(total) < (1.0 - COVER_TOLERANCE) * area:
+        return None  # faces turned both ways
+    normal = total / np.linalg.norm(total)
+    heights = (vertices - vertices[0]) @ normal
+    if np.abs(heights).max() > PLANAR_TOLERANCE * size:
+        return None
+    tangent = np.cross(normal, [1.0, 0.0, 0.0] if abs(normal[0]) < 0.9 else [0.0, 1.0, 0.0])
+    tangent /= np.linalg.norm(tangent)
+    flat = np.stack([(vertices - vertices[0]) @ tangent, (vertices - vertices[0]) @ np.cross(normal, tangent)], 1)
+    hull = _convex_hull_2d(flat, tolerance=PLANAR_TOLERANCE * size)
+    if not 3 <= len(hull) <= MAX_EDGES:
+        return None
+    x, y = flat[hull, 0], flat[hull, 1]
+    hull_area = 0.5 * float(np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y))
+    if abs(hull_area - area) > COVER_TOLERANCE * area:
+        return None  # a hole, a notch or overlapping faces
+    return vertices[hull] - np.outer(heights[hull], normal)  # exactly in one plane
+
+
+def largest(candidates, count):
+    """The `count` polygons of largest area: each costs a few dot products per ray."""
+    return sorted(candidates, key=lambda polygon: -np.linalg.norm(_area_vector(polygon, _fan(len(polygon)))))[:count]
+
+
+def _fan(corners):
+    return np.stack([np.zeros(corners - 2, dtype=np.int64), np.arange(1, corners - 1), np.arange(2, corners)], 1)
+
+
+def _triangle_crosses(vertices, triangles):
+    a, b, c = (vertices[triangles[:, i]] for i in range(3))
+    return np.cross(b - a, c - a)
+
+
+def _area_vector(vertices, triangles):
+    """Twice the vector area: the sum of the triangles' cross products, in blocks to bound memory."""
+    return sum(_triangle_crosses(vertices, part).sum(0)
+               for part in np.array_split(triangles, max(1, len(triangles) >> 16)))
+
+
+def _convex_hull_2d(points, tolerance):
+    """Indices of the convex hull's corners, counter-clockwise (Andrew's monotone chain), without the corners
+    that stand less than `tolerance` off the line through their neighbours, so a tiled rectangle has four."""
+    candidates = _outside_octagon(points)
+    order = candidates[np.lexsort((points[candidates, 1], points[candidates, 0]))].tolist()
+    chains = []
+    for sequence in (order, order[::-1]):
+        chain = []
+        for i in sequence:
+            while len(chain) >= 2 and _turn(points[chain[-2]], points[chain[-1]], points[i]) <= 0.0:
+                chain.pop()
+            chain.append(i)
+        chains.append(chain[:-1])
+    hull = chains[0] + chains[1]
+    while len(hull) > 3:
+        offsets = [_turn(points[hull[n - 1]], points[hull[n]], points[hull[(n + 1) % len(hull)]])
+                   / math.dist(points[hull[n - 1]], points[hull[(n + 1) % len(hull)]]) for n in range(len(hull))]
+        flattest = int(np.argmin(offsets))
+        if offsets[flattest] >= tolerance:
+            break
+        del hull[flattest]
+    return np.array(hull, dtype=np.int64)
+
+
+def _outside_octagon(points):
+    """Indices of the points not strictly inside the polygon of the extreme points in eight directions (Akl and
+    Toussaint): only these can be hull corners, a few boundary points of a big flat grid instead of all."""
+    angles = np.arange(8) * (np.pi / 4)
+    extremes = np.argmax(points @ np.stack([np.cos(angles), np.sin(angles)]), axis=0)
+    corners = points[extremes[np.sort(np.unique(extremes, return_index=True)[1])]]
+    if len(corners) < 3:
+        return np.arange(len(points))
+    a, b = corners, np.roll(corners, -1, axis=0)
+    turns = (b[:, 0] - a[:, 0]) * (points[:, 1, None] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (points[:, 0, None] - a[:, 0])
+    return np.flatnonzero((turns <= 0.0).any(axis=1))
+
+
+def _turn(a, b, c):
+    """Twice the signed area of triangle abc: positive when it turns counter-clockwise."""
+    return (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0])
+
+
+def cone_planes(apexes, polygons):
+    """(c, P, m, 3) normals of the planes through each apex and each edge of each polygon (a list of (m, 3)
+    corners), oriented so that a direction d points at the polygon exactly when d·plane ≥ 0 for all its edges;
+    all zero where the apex lies in the polygon's plane (nothing points at it)."""
+    padded = _padded(polygons)
+    relative = padded[None] - apexes[:, None, None, :]
+    planes = _cross(relative, np.roll(relative, -1, axis=2))
+    facing = np.stack([_polygon_normal(polygon) for polygon in polygons])
+    side = np.sign(np.einsum("cpj,pj->cp", relative[:, :, 0], facing))  # +1: the apex sees the polygon's back
+    return planes * side[..., None, None]
+
+
+def hits(directions, planes):
+    """directions (c, k, 3), planes (c, P, m, 3) from cone_planes → (c, k) int8: how many polygons each ray
+    hits."""
+    count = np.zeros(directions.shape[:2], dtype=np.int8)
+    for polygon in range(planes.shape[1]):
+        inside = np.any(planes[:, polygon] != 0.0, axis=(1, 2))[:, None].repeat(directions.shape[1], axis=1)
+        for edge in range(planes.shape[2]):
+            inside &= np.einsum("ckj,cj->ck", directions, planes[:, polygon, edge]) >= 0.0
+        count += inside
+    return count
+
+
+def blocked_transfer(order, apexes, normals, polygons):
+    """(c, order²): G_k = (1/π) ∫ (n·ω)₊ Y_k(ω) dω over the directions from each apex that hit a polygon, summed
+    over `polygons` (a list of (m, 3) corners, or one). All (vertex, polygon) pairs go through one pass."""
+    polygons = [polygons] if isinstance(polygons, np.ndarray) and polygons.ndim == 2 else list(polygons)
+    blocked = np.zeros((len(apexes), order * order))
+    if not polygons:
+        return blocked
+    padded = _padded(polygons)  # (P, m, 3)
+    relative = padded[None] - apexes[:, None, None, :]  # (c, P, m, 3)
+    facing = np.stack([_polygon_normal(polygon) for polygon in polygons])
+    side = np.sign(np.einsum("cpj,pj->cp", relative[:, :, 0], facing))
+    seen = (side != 0) & (np.einsum("cpmj,cj->cpm", relative, normals) > 0.0).any(2)
+    vertex, polygon = np.nonzero(seen)
+    if not len(vertex):
+        return blocked
+    rows = relative[vertex, polygon]
+    rows = np.where(side[vertex, polygon, None, None] < 0, rows[:, ::-1], rows)  # counter-clockwise from the apex
+    clipped = _clip_to_half_space(rows, normals[vertex])
+    length = np.linalg.norm(clipped, axis=-1, keepdims=True)
+    unit = np.divide(clipped, length, out=np.zeros_like(clipped), where=length > 0)
+    integrals = np.zeros((len(apexes), (order + 1) ** 2))  # bands 0..order: (n·ω)·Y_k reaches band l + 1
+    np.add.at(integrals, vertex, _sh_integrals(order + 1, unit))
+    seen_vertices = np.unique(vertex)
+    lobe = (4.0 * np.pi / 3.0) * sh.evaluate(2, normals[seen_vertices])[:, 1:4]  # n·ω = Σ_a lobe_a Y_a(ω)
+    weights = np.einsum("ca,akj->ckj", lobe, _cosine_products(order))
+    blocked[seen_vertices] = np.einsum("ckj,cj->ck", weights, integrals[seen_vertices]) / np.pi
+    return blocked
+
+
+def _padded(polygons):
+    """(P, m, 3): every polygon with its last corner repeated up to the most corners (zero-length edges)."""
+    most = max(len(polygon) for polygon in polygons)
+    return np.stack([np.concatenate([polygon, np.repeat(polygon[-1:], most - len(polygon), axis=0)])
+                     for polygon in polygons])
+
+
+def _polygon_normal(polygon):
+    total = _cross(polygon, np.roll(polygon, -1, axis=0)).sum(0)
+    return total / np.linalg.norm(total)
+
+
+def _clip_to_half_space(points, normals):
+    """Sutherland-Hodgman: each convex polygon (c, m, 3) cut to n·x ≥ 0, as (c, m + 1, 3) corners in order (one
+    cut adds at most one corner), the last kept corner repeated in the slots left over (zero-length edges); all
+    zero when nothing is left."""
+    height = np.einsum("cmj,cj->cm", points, normals)
+    following, following_height = np.roll(points, -1, axis=1), np.roll(height, -1, axis=1)
+    inside, crosses = height >= 0.0, (height >= 0.0) != (following_height >= 0.0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = np.where(crosses, height / (height - following_height), 0.0)
+    cut = points + t[..., None] * (following - points)
+    slots = np.stack([points, cut], axis=2).reshape(len(points), -1, 3)  # each corner, then its edge's cut
+    keep = np.stack([inside, crosses], axis=2).reshape(len(points), -1)
+    first = np.argsort(~keep, axis=1, kind="stable")[:, :points.shape[1] + 1]  # kept slots first, in order
+    count = keep.sum(1)
+    first = np.where(np.arange(first.shape[1]) < count[:, None], first,
+                     np.take_along_axis(first, np.maximum(count - 1, 0)[:, None], axis=1))
+    return np.take_along_axis(slots, first[..., None], axis=1) * (count > 0)[:, None, None]
+
+
+def _sh_integrals(order, unit):
+    """(c, order²): ∫ Y_k(ω) dω over spherical polygons (c, m, 3), corners counter-clockwise seen from the
+    centre, repeated corners allowed. Band l is a combination of 2l + 1 zonal lobes P_l(w·ω) (addition theorem),
+    each a polynomial in w·ω whose integral is a sum of axial moments."""
+    directions, lobes_to_sh, powers = _zonal_tables(order)
+    moments = _axial_moments(unit, directions, order - 1)  # (c, D, order)
+    out = np.empty((len(unit), order * order))
+    start = 0
+    for l in range(order):
+        span = slice(start, start + 2 * l + 1)
+        lobes = moments[:, span] @ powers[l]  # ∫ P_l(w_j·ω) dω, (c, 2l + 1)
+        out[:, l * l:(l + 1) * (l + 1)] = lobes @ lobes_to_sh[l]
+        start += 2 * l + 1
+    return out
+
+
+def _axial_moments(unit, axes, degree):
+    """(c, D, degree + 1): τ_k(w) = ∫ (w·ω)^k dω over each spherical polygon (c, m, 3), for axes w (D, 3).
+
+    Arvo's recurrence over the edges: τ_k = ((k − 1) τ_{k−2} + Σ_i (w·n_i) F_i^{k−1}) / (k + 1), with n_i the
+    unit normal of edge i's great circle (towards the inside) and F_i^j = ∫ (w·ω)^j along edge i, which has a
+    recurrence of its own."""
+    start, end = unit, np.roll(unit, -1, axis=1)
+    cross = _cross(start, end)
+    sine = np.sqrt(np.sum(cross * cross, axis=-1))
+    angle = np.arctan2(sine, np.sum(start * end, axis=-1))[..., None]
+    edge_normal = np.divide(cross, sine[..., None], out=np.zeros_like(cross), where=sine[..., None] > 0)
+    # Along an edge w·ω = a cos φ + b sin φ, b the tangent leaving `start`; at its end, a_end and b_end.
+    frames = np.stack([start, _cross(edge_normal, start), end, _cross(edge_normal, end), edge_normal])
+    a, b, a_end, b_end, c = frames @ axes.T  # each (c, m, D)
+    radius_squared = a * a + b * b
+    edge = [np.broadcast_to(angle, a.shape), a * np.sin(angle) + b * (1.0 - np.cos(angle))]  # F^0, F^1
+    power, power_end = np.ones_like(a), np.ones_like(a)  # a^(j−1), a_end^(j−1)
+    for j in range(2, degree):
+        power *= a
+        power_end *= a_end
+        edge.append(((j - 1) * radius_squared * edge[j - 2] - (power_end * b_end - power * b)) / j)
+    moments = np.empty(unit.shape[:1] + (len(axes), degree + 1))
+    moments[..., 0] = _solid_angle(unit)[:, None]
+    for k in range(1, degree + 1):
+        previous = (k - 1) * moments[..., k - 2] if k >= 2 else 0.0
+        moments[..., k] = (previous + np.einsum("cmd,cmd->cd", c, edge[k - 1])) / (k + 1)
+    return moments
+
+
+def _cross(a, b):
+    """Cross products along the last axis, without np.cross's axis shuffling (these arrays are small)."""
+    return np.stack([a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1], a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2],
+                     a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]], axis=-1)
+
+
+def _solid_angle(unit):
+    """(c,) solid angle of each spherical polygon, a fan of triangles from its first corner (Van Oosterom and
+    Strackee's formula: exact for triangles up to a hemisphere)."""
+    first = unit[:, :1]
+    here, following = unit[:, 1:-1], unit[:, 2:]
+    triple = np.einsum("cmj,cmj->cm", np.broadcast_to(first, here.shape), _cross(here, following))
+    dots = 1.0 + np.einsum("cmj,cmj->cm", first, here) + np.einsum("cmj,cmj->cm", here, following) \
+        + np.einsum("cmj,cmj->cm", following, first)
+    return 2.0 * np.arctan2(triple, dots).sum(1)
+
+
+@lru_cache(maxsize=None)
+def _zonal_tables(order):
+    """Per band l < order: 2l + 1 lobe axes, the matrix taking the lobes' integrals to band l's, and P_l's
+    monomial coefficients. The axes are a Fibonacci hemisphere turned to make the lobes' matrix best
+    conditioned."""
+    axes, to_sh, powers = [], [], []
+    for l in range(order):
+        count = 2 * l + 1
+        best = None
+        for turn in np.linspace(0.0, 1.0, 16, endpoint=False):
+            candidate = _fibonacci_hemisphere(count, turn)
+            matrix = (4.0 * np.pi / count) * sh.evaluate(order, candidate)[:, l * l:(l + 1) * (l + 1)]
+            condition = np.linalg.cond(matrix)
+            if best is None or condition < best[0]:
+                best = (condition, candidate, matrix)
+        axes.append(best[1])
+        to_sh.append(np.linalg.inv(best[2]).T)  # lobes = M · I_l, so I_lᵀ = lobesᵀ · M⁻ᵀ
+        power = np.zeros(order)
+        power[:l + 1] = legendre.leg2poly(np.eye(l + 1)[l])
+        powers.append(power)
+    return np.concatenate(axes), to_sh, powers
+
+
+def _fibonacci_hemisphere(count, turn):
+    index = np.arange(count) + 0.5
+    z = 1.0 - index / count  # one hemisphere: antipodal axes give the same lobe up to sign
+    azimuth = 2.0 * np.pi * (index * (math.sqrt(5.0) - 1.0) / 2.0 + turn)
+    radius = np.sqrt(1.0 - z * z)
+    return np.stack([radius * np.cos(azimuth), radius * np.sin(azimuth), z], axis=1)
+
+
+@lru_cache(maxsize=None)
+def _cosine_products(order):
+    """(3, order², (order + 1)²): ∫ Y_a Y_k Y_j over the sphere for the band-one a, by a product rule exact for
+    these polynomials (Gauss-Legendre in z, equal steps in azimuth)."""
+    nodes, weights = legendre.leggauss(order + 2)
+    steps = 2 * order + 4
+    azimuth = 2.0 * np.pi * np.arange(steps) / steps
+    z = np.repeat(nodes, steps)
+    radius = np.sqrt(1.0 - z * z)
+    points = np.stack([radius * np.tile(np.cos(azimuth), len(nodes)),
+                       radius * np.tile(np.sin(azimuth), len(nodes)), z], axis=1)
+    weight = np.repeat(weights, steps) * (2.0 * np.pi / steps)
+    basis = sh.evaluate(order + 1, points)
+    return np.einsum("q,qa,qk,qj->akj", weight, basis[:, 1:4], basis[:, :order * order], basis)
