@@ -33,13 +33,11 @@ def convex_polygon(vertices, triangles):
         return None
     size = float(np.ptp(vertices, axis=0).max())
     # Most objects are not flat: a plane from a few triangles rejects them before any per-triangle work.
-    guess = _area_vector(vertices, triangles[:64])
+    guess, _ = _areas(vertices, triangles[:64])
     if not np.linalg.norm(guess) > 0.0 or np.abs((vertices - vertices[0]) @ guess).max() \
             > PLANAR_TOLERANCE * size * np.linalg.norm(guess):
         return None
-    total = _area_vector(vertices, triangles)
-    area = 0.5 * float(sum(np.linalg.norm(_triangle_crosses(vertices, part), axis=1).sum()
-                           for part in np.array_split(triangles, max(1, len(triangles) >> 16))))
+    total, area = _areas(vertices, triangles)
     if not area > 0.0 or 0.5 * np.linalg.norm(total) < (1.0 - COVER_TOLERANCE) * area:
         return None  # faces turned both ways
     normal = total / np.linalg.norm(total)
@@ -61,22 +59,23 @@ def convex_polygon(vertices, triangles):
 
 def largest(candidates, count):
     """The `count` polygons of largest area: each costs a few dot products per ray."""
-    return sorted(candidates, key=lambda polygon: -np.linalg.norm(_area_vector(polygon, _fan(len(polygon)))))[:count]
+    return sorted(candidates, key=lambda polygon: -np.linalg.norm(_vector_area(polygon)))[:count]
 
 
-def _fan(corners):
-    return np.stack([np.zeros(corners - 2, dtype=np.int64), np.arange(1, corners - 1), np.arange(2, corners)], 1)
+def _areas(vertices, triangles):
+    """(twice the vector area, the area) of triangles, in blocks to bound memory."""
+    total, area = np.zeros(3), 0.0
+    for part in np.array_split(triangles, max(1, len(triangles) >> 16)):
+        a, b, c = (vertices[part[:, i]] for i in range(3))
+        crosses = np.cross(b - a, c - a)
+        total += crosses.sum(0)
+        area += 0.5 * float(np.linalg.norm(crosses, axis=1).sum())
+    return total, area
 
 
-def _triangle_crosses(vertices, triangles):
-    a, b, c = (vertices[triangles[:, i]] for i in range(3))
-    return np.cross(b - a, c - a)
-
-
-def _area_vector(vertices, triangles):
-    """Twice the vector area: the sum of the triangles' cross products, in blocks to bound memory."""
-    return sum(_triangle_crosses(vertices, part).sum(0)
-               for part in np.array_split(triangles, max(1, len(triangles) >> 16)))
+def _vector_area(polygon):
+    """Twice the vector area of a flat polygon (m, 3): along its normal, counter-clockwise."""
+    return _cross(polygon, np.roll(polygon, -1, axis=0)).sum(0)
 
 
 def _convex_hull_2d(points, tolerance):
@@ -125,12 +124,8 @@ def cone_planes(apexes, polygons):
     """(c, P, m, 3) normals of the planes through each apex and each edge of each polygon (a list of (m, 3)
     corners), oriented so that a direction d points at the polygon exactly when d·plane ≥ 0 for all its edges;
     all zero where the apex lies in the polygon's plane (nothing points at it)."""
-    padded = _padded(polygons)
-    relative = padded[None] - apexes[:, None, None, :]
-    planes = _cross(relative, np.roll(relative, -1, axis=2))
-    facing = np.stack([_polygon_normal(polygon) for polygon in polygons])
-    side = np.sign(np.einsum("cpj,pj->cp", relative[:, :, 0], facing))  # +1: the apex sees the polygon's back
-    return planes * side[..., None, None]
+    relative, side = _seen_from(apexes, polygons)
+    return _cross(relative, np.roll(relative, -1, axis=2)) * side[..., None, None]
 
 
 def hits(directions, planes):
@@ -147,15 +142,11 @@ def hits(directions, planes):
 
 def blocked_transfer(order, apexes, normals, polygons):
     """(c, order²): G_k = (1/π) ∫ (n·ω)₊ Y_k(ω) dω over the directions from each apex that hit a polygon, summed
-    over `polygons` (a list of (m, 3) corners, or one). All (vertex, polygon) pairs go through one pass."""
-    polygons = [polygons] if isinstance(polygons, np.ndarray) and polygons.ndim == 2 else list(polygons)
+    over `polygons` (a list of (m, 3) corners). All (vertex, polygon) pairs go through one pass."""
     blocked = np.zeros((len(apexes), order * order))
     if not polygons:
         return blocked
-    padded = _padded(polygons)  # (P, m, 3)
-    relative = padded[None] - apexes[:, None, None, :]  # (c, P, m, 3)
-    facing = np.stack([_polygon_normal(polygon) for polygon in polygons])
-    side = np.sign(np.einsum("cpj,pj->cp", relative[:, :, 0], facing))
+    relative, side = _seen_from(apexes, polygons)
     seen = (side != 0) & (np.einsum("cpmj,cj->cpm", relative, normals) > 0.0).any(2)
     vertex, polygon = np.nonzero(seen)
     if not len(vertex):
@@ -174,16 +165,19 @@ def blocked_transfer(order, apexes, normals, polygons):
     return blocked
 
 
+def _seen_from(apexes, polygons):
+    """Corners relative to each apex (c, P, m, 3), padded to the most corners, and (c, P) the side each apex sees:
+    +1 the polygon's back (its corners run counter-clockwise from the apex), −1 its front, 0 edge-on."""
+    relative = _padded(polygons)[None] - apexes[:, None, None, :]
+    facing = np.stack([_vector_area(polygon) for polygon in polygons])
+    return relative, np.sign(np.einsum("cpj,pj->cp", relative[:, :, 0], facing))
+
+
 def _padded(polygons):
     """(P, m, 3): every polygon with its last corner repeated up to the most corners (zero-length edges)."""
     most = max(len(polygon) for polygon in polygons)
     return np.stack([np.concatenate([polygon, np.repeat(polygon[-1:], most - len(polygon), axis=0)])
                      for polygon in polygons])
-
-
-def _polygon_normal(polygon):
-    total = _cross(polygon, np.roll(polygon, -1, axis=0)).sum(0)
-    return total / np.linalg.norm(total)
 
 
 def _clip_to_half_space(points, normals):
