@@ -156,12 +156,7 @@ def blocked_transfer(order, apexes, normals, polygons):
     clipped = _clip_to_half_space(rows, normals[vertex])
     length = np.linalg.norm(clipped, axis=-1, keepdims=True)
     unit = np.divide(clipped, length, out=np.zeros_like(clipped), where=length > 0)
-    integrals = np.zeros((len(apexes), (order + 1) ** 2))  # bands 0..order: (n·ω)·Y_k reaches band l + 1
-    np.add.at(integrals, vertex, _sh_integrals(order + 1, unit))
-    seen_vertices = np.unique(vertex)
-    lobe = (4.0 * np.pi / 3.0) * sh.evaluate(2, normals[seen_vertices])[:, 1:4]  # n·ω = Σ_a lobe_a Y_a(ω)
-    weights = np.einsum("ca,akj->ckj", lobe, _cosine_products(order))
-    blocked[seen_vertices] = np.einsum("ckj,cj->ck", weights, integrals[seen_vertices]) / np.pi
+    np.add.at(blocked, vertex, _cosine_sh_integrals(order, unit, normals[vertex]) / np.pi)
     return blocked
 
 
@@ -199,28 +194,30 @@ def _clip_to_half_space(points, normals):
     return np.take_along_axis(slots, first[..., None], axis=1) * (count > 0)[:, None, None]
 
 
-def _sh_integrals(order, unit):
-    """(c, order²): ∫ Y_k(ω) dω over spherical polygons (c, m, 3), corners counter-clockwise seen from the
-    centre, repeated corners allowed. Band l is a combination of 2l + 1 zonal lobes P_l(w·ω) (addition theorem),
-    each a polynomial in w·ω whose integral is a sum of axial moments."""
+def _cosine_sh_integrals(order, unit, normals):
+    """(c, order²): ∫ (n·ω) Y_k(ω) dω over spherical polygons (c, m, 3), corners counter-clockwise seen from the
+    centre, repeated corners allowed, each with its own n (c, 3). Band l is a combination of 2l + 1 zonal lobes
+    P_l(w·ω) (addition theorem), each a polynomial in w·ω, so its integral is a sum of double-axis moments."""
     directions, lobes_to_sh, powers = _zonal_tables(order)
-    moments = _axial_moments(unit, directions, order - 1)  # (c, D, order)
+    moments = _cosine_moments(unit, normals, directions, order - 1)  # (c, D, order)
     out = np.empty((len(unit), order * order))
     start = 0
     for l in range(order):
         span = slice(start, start + 2 * l + 1)
-        lobes = moments[:, span] @ powers[l]  # ∫ P_l(w_j·ω) dω, (c, 2l + 1)
+        lobes = moments[:, span] @ powers[l]  # ∫ (n·ω) P_l(w_j·ω) dω, (c, 2l + 1)
         out[:, l * l:(l + 1) * (l + 1)] = lobes @ lobes_to_sh[l]
         start += 2 * l + 1
     return out
 
 
-def _axial_moments(unit, axes, degree):
-    """(c, D, degree + 1): τ_k(w) = ∫ (w·ω)^k dω over each spherical polygon (c, m, 3), for axes w (D, 3).
+def _cosine_moments(unit, normals, axes, degree):
+    """(c, D, degree + 1): μ_p(w) = ∫ (n·ω)(w·ω)^p dω over each spherical polygon (c, m, 3) with its own n (c, 3),
+    for axes w (D, 3).
 
-    Arvo's recurrence over the edges: τ_k = ((k − 1) τ_{k−2} + Σ_i (w·n_i) F_i^{k−1}) / (k + 1), with n_i the
-    unit normal of edge i's great circle (towards the inside) and F_i^j = ∫ (w·ω)^j along edge i, which has a
-    recurrence of its own."""
+    Arvo's recurrences over the edges, with n_i the unit normal of edge i's great circle (towards the inside) and
+    F_i^j = ∫ (w·ω)^j along edge i (which has a recurrence of its own):
+    axial moments τ_k = ∫ (w·ω)^k dω = ((k − 1) τ_{k−2} + Σ_i (w·n_i) F_i^{k−1}) / (k + 1), and
+    double-axis moments μ_p = (p (n·w) τ_{p−1} + Σ_i (n·n_i) F_i^p) / (p + 2)."""
     start, end = unit, np.roll(unit, -1, axis=1)
     cross = _cross(start, end)
     sine = np.sqrt(np.sum(cross * cross, axis=-1))
@@ -232,15 +229,21 @@ def _axial_moments(unit, axes, degree):
     radius_squared = a * a + b * b
     edge = [np.broadcast_to(angle, a.shape), a * np.sin(angle) + b * (1.0 - np.cos(angle))]  # F^0, F^1
     power, power_end = np.ones_like(a), np.ones_like(a)  # a^(j−1), a_end^(j−1)
-    for j in range(2, degree):
+    for j in range(2, degree + 1):
         power *= a
         power_end *= a_end
         edge.append(((j - 1) * radius_squared * edge[j - 2] - (power_end * b_end - power * b)) / j)
+    axial = np.empty(unit.shape[:1] + (len(axes), max(degree, 1)))
+    axial[..., 0] = _solid_angle(unit)[:, None]
+    for k in range(1, degree):
+        previous = (k - 1) * axial[..., k - 2] if k >= 2 else 0.0
+        axial[..., k] = (previous + np.einsum("cmd,cmd->cd", c, edge[k - 1])) / (k + 1)
+    normal_along_axes = normals @ axes.T  # (c, D)
+    normal_along_edges = np.einsum("cmj,cj->cm", edge_normal, normals)
     moments = np.empty(unit.shape[:1] + (len(axes), degree + 1))
-    moments[..., 0] = _solid_angle(unit)[:, None]
-    for k in range(1, degree + 1):
-        previous = (k - 1) * moments[..., k - 2] if k >= 2 else 0.0
-        moments[..., k] = (previous + np.einsum("cmd,cmd->cd", c, edge[k - 1])) / (k + 1)
+    for p in range(degree + 1):
+        previous = p * normal_along_axes * axial[..., p - 1] if p >= 1 else 0.0
+        moments[..., p] = (previous + np.einsum("cm,cmd->cd", normal_along_edges, edge[p])) / (p + 2)
     return moments
 
 
@@ -290,19 +293,3 @@ def _fibonacci_hemisphere(count, turn):
     azimuth = 2.0 * np.pi * (index * (math.sqrt(5.0) - 1.0) / 2.0 + turn)
     radius = np.sqrt(1.0 - z * z)
     return np.stack([radius * np.cos(azimuth), radius * np.sin(azimuth), z], axis=1)
-
-
-@lru_cache(maxsize=None)
-def _cosine_products(order):
-    """(3, order², (order + 1)²): ∫ Y_a Y_k Y_j over the sphere for the band-one a, by a product rule exact for
-    these polynomials (Gauss-Legendre in z, equal steps in azimuth)."""
-    nodes, weights = legendre.leggauss(order + 2)
-    steps = 2 * order + 4
-    azimuth = 2.0 * np.pi * np.arange(steps) / steps
-    z = np.repeat(nodes, steps)
-    radius = np.sqrt(1.0 - z * z)
-    points = np.stack([radius * np.tile(np.cos(azimuth), len(nodes)),
-                       radius * np.tile(np.sin(azimuth), len(nodes)), z], axis=1)
-    weight = np.repeat(weights, steps) * (2.0 * np.pi / steps)
-    basis = sh.evaluate(order + 1, points)
-    return np.einsum("q,qa,qk,qj->akj", weight, basis[:, 1:4], basis[:, :order * order], basis)

@@ -32,13 +32,14 @@ def test_blocked_transfer_matches_quadrature(order, polygon, apex, normal):
     assert np.abs(exact - truth).max() < 1e-9
 
 
-def test_axial_moments_and_solid_angle_match_quadrature():
+def test_double_axis_moments_and_solid_angle_match_quadrature():
     axes = random_directions(7, seed=3)
+    normal = np.array([0.36, -0.48, 0.8])
     unit = SQUARE / np.linalg.norm(SQUARE, axis=1, keepdims=True)
-    moments = polygons._axial_moments(unit[None], axes, 12)[0]
+    moments = polygons._cosine_moments(unit[None], normal[None], axes, 12)[0]
     directions, weights = polygon_directions(np.zeros(3), SQUARE)
-    truth = np.stack([weights @ (directions @ axes.T) ** k for k in range(13)], axis=1)
-    assert abs(moments[0, 0] - 2 * math.pi / 3) < 1e-13  # a cube face seen from its centre: 4π/6
+    truth = np.stack([(weights * (directions @ normal)) @ (directions @ axes.T) ** p for p in range(13)], axis=1)
+    assert abs(polygons._solid_angle(unit[None])[0] - 2 * math.pi / 3) < 1e-13  # a cube face from its centre: 4π/6
     assert np.abs(moments - truth).max() < 1e-11
 
 
