@@ -253,7 +253,7 @@ def _flat_shadows(caster, origins, normals, order):
             if (normals @ polygon.T > np.einsum("ij,ij->i", normals, origins)[:, None]).any()]
     if not seen:
         return None, np.zeros((len(origins), order * order))
-    return polygons.cone_planes(origins, seen), polygons.blocked_transfer(order, origins, normals, seen)
+    return polygons.cones_and_blocked_transfer(order, origins, normals, seen)
 
 
 def _records(hits, rays):

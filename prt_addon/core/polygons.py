@@ -120,11 +120,12 @@ def _turn(a, b, c):
     return (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0])
 
 
-def cone_planes(apexes, polygons):
+def cone_planes(apexes, polygons, seen_from=None):
     """(c, P, m, 3) normals of the planes through each apex and each edge of each polygon (a list of (m, 3)
     corners), oriented so that a direction d points at the polygon exactly when d·plane ≥ 0 for all its edges;
-    all zero where the apex lies in the polygon's plane (nothing points at it)."""
-    relative, side = _seen_from(apexes, polygons)
+    all zero where the apex lies in the polygon's plane (nothing points at it). `seen_from`: _seen_from's
+    result, when the caller has it already."""
+    relative, side = seen_from or _seen_from(apexes, polygons)
     return _cross(relative, np.roll(relative, -1, axis=2)) * side[..., None, None]
 
 
@@ -140,13 +141,19 @@ def hits(directions, planes):
     return count
 
 
-def blocked_transfer(order, apexes, normals, polygons):
+def cones_and_blocked_transfer(order, apexes, normals, polygons):
+    """cone_planes and blocked_transfer of the same apexes and polygons, sharing their view of the polygons."""
+    seen_from = _seen_from(apexes, polygons)
+    return cone_planes(apexes, polygons, seen_from), blocked_transfer(order, apexes, normals, polygons, seen_from)
+
+
+def blocked_transfer(order, apexes, normals, polygons, seen_from=None):
     """(c, order²): G_k = (1/π) ∫ (n·ω)₊ Y_k(ω) dω over the directions from each apex that hit a polygon, summed
     over `polygons` (a list of (m, 3) corners). All (vertex, polygon) pairs go through one pass."""
     blocked = np.zeros((len(apexes), order * order))
     if not polygons:
         return blocked
-    relative, side = _seen_from(apexes, polygons)
+    relative, side = seen_from or _seen_from(apexes, polygons)
     seen = (side != 0) & (np.einsum("cpmj,cj->cpm", relative, normals) > 0.0).any(2)
     vertex, polygon = np.nonzero(seen)
     if not len(vertex):
@@ -204,7 +211,7 @@ def _cosine_sh_integrals(order, unit, normals):
     start = 0
     for l in range(order):
         span = slice(start, start + 2 * l + 1)
-        lobes = moments[:, span] @ powers[l]  # ∫ (n·ω) P_l(w_j·ω) dω, (c, 2l + 1)
+        lobes = np.einsum("cdp,p->cd", moments[:, span], powers[l])  # ∫ (n·ω) P_l(w_j·ω) dω, (c, 2l + 1)
         out[:, l * l:(l + 1) * (l + 1)] = lobes @ lobes_to_sh[l]
         start += 2 * l + 1
     return out
@@ -221,29 +228,37 @@ def _cosine_moments(unit, normals, axes, degree):
     start, end = unit, np.roll(unit, -1, axis=1)
     cross = _cross(start, end)
     sine = np.sqrt(np.sum(cross * cross, axis=-1))
-    angle = np.arctan2(sine, np.sum(start * end, axis=-1))[..., None]
+    angle = np.arctan2(sine, np.sum(start * end, axis=-1))  # (c, m): F^0, the same for every axis
     edge_normal = np.divide(cross, sine[..., None], out=np.zeros_like(cross), where=sine[..., None] > 0)
-    # Along an edge w·ω = a cos φ + b sin φ, b the tangent leaving `start`; at its end, a_end and b_end.
-    frames = np.stack([start, _cross(edge_normal, start), end, _cross(edge_normal, end), edge_normal])
-    a, b, a_end, b_end, c = frames @ axes.T  # each (c, m, D)
-    radius_squared = a * a + b * b
-    edge = [np.broadcast_to(angle, a.shape), a * np.sin(angle) + b * (1.0 - np.cos(angle))]  # F^0, F^1
-    power, power_end = np.ones_like(a), np.ones_like(a)  # a^(j−1), a_end^(j−1)
-    for j in range(2, degree + 1):
-        power *= a
-        power_end *= a_end
-        edge.append(((j - 1) * radius_squared * edge[j - 2] - (power_end * b_end - power * b)) / j)
-    axial = np.empty(unit.shape[:1] + (len(axes), max(degree, 1)))
-    axial[..., 0] = _solid_angle(unit)[:, None]
-    for k in range(1, degree):
-        previous = (k - 1) * axial[..., k - 2] if k >= 2 else 0.0
-        axial[..., k] = (previous + np.einsum("cmd,cmd->cd", c, edge[k - 1])) / (k + 1)
     normal_along_axes = normals @ axes.T  # (c, D)
     normal_along_edges = np.einsum("cmj,cj->cm", edge_normal, normals)
     moments = np.empty(unit.shape[:1] + (len(axes), degree + 1))
-    for p in range(degree + 1):
-        previous = p * normal_along_axes * axial[..., p - 1] if p >= 1 else 0.0
-        moments[..., p] = (previous + np.einsum("cm,cmd->cd", normal_along_edges, edge[p])) / (p + 2)
+    moments[..., 0] = 0.5 * np.einsum("cm,cm->c", normal_along_edges, angle)[:, None]
+    if degree == 0:
+        return moments
+    # Along an edge w·ω = a cos φ + b sin φ, b the tangent leaving `start`; at its end, a_end and b_end. One
+    # matrix product over all edges (a broadcast matmul would run one tiny product per edge).
+    frames = np.stack([start, _cross(edge_normal, start), end, _cross(edge_normal, end), edge_normal])
+    a, b, a_end, b_end, c = (frames.reshape(-1, 3) @ axes.T).reshape(frames.shape[:-1] + (len(axes),))
+    sin_angle, cos_angle = np.sin(angle)[..., None], np.cos(angle)[..., None]
+    edge = [None, a * sin_angle + b * (1.0 - cos_angle)]  # F^1; F^0 is `angle`
+    radius_squared = a * a + b * b
+    power, power_end = a, a_end  # a^(j−1), a_end^(j−1)
+    for j in range(2, degree + 1):
+        term = radius_squared * (angle[..., None] if j == 2 else edge[j - 2])
+        term *= j - 1
+        term -= power_end * b_end
+        term += power * b
+        term /= j
+        edge.append(term)
+        if j < degree:
+            power, power_end = power * a, power_end * a_end
+    axial = [_solid_angle(unit)[:, None], np.einsum("cmd,cm->cd", c, angle) / 2.0]  # τ_0, τ_1
+    for k in range(2, degree):
+        axial.append(((k - 1) * axial[k - 2] + np.einsum("cmd,cmd->cd", c, edge[k - 1])) / (k + 1))
+    for p in range(1, degree + 1):
+        along_edges = np.einsum("cm,cmd->cd", normal_along_edges, edge[p])
+        moments[..., p] = (p * normal_along_axes * axial[p - 1] + along_edges) / (p + 2)
     return moments
 
 
@@ -258,9 +273,8 @@ def _solid_angle(unit):
     Strackee's formula: exact for triangles up to a hemisphere)."""
     first = unit[:, :1]
     here, following = unit[:, 1:-1], unit[:, 2:]
-    triple = np.einsum("cmj,cmj->cm", np.broadcast_to(first, here.shape), _cross(here, following))
-    dots = 1.0 + np.einsum("cmj,cmj->cm", first, here) + np.einsum("cmj,cmj->cm", here, following) \
-        + np.einsum("cmj,cmj->cm", following, first)
+    triple = np.sum(first * _cross(here, following), axis=-1)
+    dots = 1.0 + np.sum(first * here + here * following + following * first, axis=-1)
     return 2.0 * np.arctan2(triple, dots).sum(1)
 
 
