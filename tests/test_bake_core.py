@@ -113,7 +113,8 @@ def test_any_polygon_keeps_the_estimate_unbiased():
     spread = result.transfer[:, ZONAL].std(0) / np.sqrt(256)
     assert np.all(np.abs(mean - expected) <= 4 * spread + 1e-4), (mean, expected, spread)
     # Teeth: the phantom's closed form is far larger than the tolerance, so a wrong sign or a missing term fails.
-    assert np.abs(polygons.blocked_transfer(4, np.zeros((1, 3)), np.array([[0.0, 0.0, 1.0]]), [phantom])).max() > 0.05
+    _, blocked = polygons.cones_and_blocked_transfer(4, np.zeros((1, 3)), np.array([[0.0, 0.0, 1.0]]), [phantom])
+    assert np.abs(blocked).max() > 0.05
 
 
 def test_estimated_error_is_honest():

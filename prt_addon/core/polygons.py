@@ -120,18 +120,9 @@ def _turn(a, b, c):
     return (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0])
 
 
-def cone_planes(apexes, polygons, seen_from=None):
-    """(c, P, m, 3) normals of the planes through each apex and each edge of each polygon (a list of (m, 3)
-    corners), oriented so that a direction d points at the polygon exactly when d·plane ≥ 0 for all its edges;
-    all zero where the apex lies in the polygon's plane (nothing points at it). `seen_from`: _seen_from's
-    result, when the caller has it already."""
-    relative, side = seen_from or _seen_from(apexes, polygons)
-    return _cross(relative, np.roll(relative, -1, axis=2)) * side[..., None, None]
-
-
 def hits(directions, planes):
-    """directions (c, k, 3), planes (c, P, m, 3) from cone_planes → (c, k) int8: how many polygons each ray
-    hits."""
+    """directions (c, k, 3), cone planes (c, P, m, 3) from cones_and_blocked_transfer → (c, k) int8: how many
+    polygons each ray hits."""
     count = np.zeros(directions.shape[:2], dtype=np.int8)
     for polygon in range(planes.shape[1]):
         inside = np.any(planes[:, polygon] != 0.0, axis=(1, 2))[:, None].repeat(directions.shape[1], axis=1)
@@ -142,18 +133,20 @@ def hits(directions, planes):
 
 
 def cones_and_blocked_transfer(order, apexes, normals, polygons):
-    """cone_planes and blocked_transfer of the same apexes and polygons, sharing their view of the polygons."""
-    seen_from = _seen_from(apexes, polygons)
-    return cone_planes(apexes, polygons, seen_from), blocked_transfer(order, apexes, normals, polygons, seen_from)
+    """For apexes (c, 3) with unit normals (c, 3) and polygons (a list of (m, 3) corners):
+
+    - (c, P, m, 3) cone planes: normals of the planes through each apex and each edge of each polygon, oriented
+      so that a direction d points at the polygon exactly when d·plane ≥ 0 for all its edges; all zero where the
+      apex lies in the polygon's plane (nothing points at it);
+    - (c, order²) blocked transfer: G_k = (1/π) ∫ (n·ω)₊ Y_k(ω) dω over the directions from each apex that hit a
+      polygon, summed over the polygons, all (vertex, polygon) pairs in one pass."""
+    relative, side = _seen_from(apexes, polygons)
+    planes = _cross(relative, np.roll(relative, -1, axis=2)) * side[..., None, None]
+    return planes, _blocked_transfer(order, normals, relative, side)
 
 
-def blocked_transfer(order, apexes, normals, polygons, seen_from=None):
-    """(c, order²): G_k = (1/π) ∫ (n·ω)₊ Y_k(ω) dω over the directions from each apex that hit a polygon, summed
-    over `polygons` (a list of (m, 3) corners). All (vertex, polygon) pairs go through one pass."""
-    blocked = np.zeros((len(apexes), order * order))
-    if not polygons:
-        return blocked
-    relative, side = seen_from or _seen_from(apexes, polygons)
+def _blocked_transfer(order, normals, relative, side):
+    blocked = np.zeros((len(normals), order * order))
     seen = (side != 0) & (np.einsum("cpmj,cj->cpm", relative, normals) > 0.0).any(2)
     vertex, polygon = np.nonzero(seen)
     if not len(vertex):

@@ -27,7 +27,8 @@ CASES = [  # (polygon, apex, normal): in front, seen from behind, cut by the hor
 @pytest.mark.parametrize("polygon, apex, normal", CASES)
 def test_blocked_transfer_matches_quadrature(order, polygon, apex, normal):
     apex, normal = np.array(apex), np.array(normal)
-    exact = polygons.blocked_transfer(order, apex[None], normal[None], [polygon])[0]
+    _, blocked = polygons.cones_and_blocked_transfer(order, apex[None], normal[None], [polygon])
+    exact = blocked[0]
     truth = polygon_transfer(order, apex, normal, polygon)
     assert np.abs(exact - truth).max() < 1e-9
 
@@ -51,9 +52,10 @@ def test_lobe_tables_are_well_conditioned_to_order_ten():
 def test_polygon_behind_the_tangent_plane_or_edge_on_blocks_nothing():
     apexes = np.array([[0.0, 0.0, 1.0 + 1e-3], [0.0, 0.0, 1.0], [0.0, 0.0, 0.0]])
     normals = np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])
-    assert np.all(polygons.blocked_transfer(6, apexes, normals, [SQUARE]) == 0.0)
+    planes, blocked = polygons.cones_and_blocked_transfer(6, apexes, normals, [SQUARE])
+    assert np.all(blocked == 0.0)
     directions = random_directions(1000)[None].repeat(3, axis=0)
-    assert not polygons.hits(directions[1:2], polygons.cone_planes(apexes[1:2], [SQUARE])).any()  # in its plane
+    assert not polygons.hits(directions[1:2], planes[1:2]).any()  # in its plane
 
 
 def test_hits_are_the_directions_the_transfer_integrates():
@@ -65,9 +67,10 @@ def test_hits_are_the_directions_the_transfer_integrates():
     directions /= np.linalg.norm(directions, axis=1, keepdims=True)
     directions[directions @ normal < 0] *= -1.0
     cosine = directions @ normal  # uniform on the hemisphere: weight 2π (n·ω)/π per ray
-    hit = polygons.hits(directions[None], polygons.cone_planes(apex[None], [SQUARE]))[0] == 1
+    planes, blocked = polygons.cones_and_blocked_transfer(4, apex[None], normal[None], [SQUARE])
+    hit = polygons.hits(directions[None], planes)[0] == 1
     samples = 2.0 * (hit * cosine)[:, None] * sh.evaluate(4, directions)
-    exact = polygons.blocked_transfer(4, apex[None], normal[None], [SQUARE])[0]
+    exact = blocked[0]
     error = samples.std(0) / math.sqrt(len(samples))
     assert np.all(np.abs(samples.mean(0) - exact) < 5 * error + 1e-12)
 
