@@ -4,6 +4,6 @@ import sys
 
 import bpy  # noqa: F401  (must come before mathutils, which the core uses)
 
-from .cli import main
+from .commands.cli import main
 
 sys.exit(main(sys.argv[1:]))

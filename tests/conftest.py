@@ -60,8 +60,8 @@ def prt(addon):
     classes), use these rather than the checkout's `prt_addon`."""
     class Modules:
         def __getattr__(self, name):
-            package = "ui." if name in ("handlers", "overlays") else ""
-            return importlib.import_module(f"{addon}.prt_addon.{package}{name}")
+            room = "ui" if name in ("handlers", "overlays") else "blender"
+            return importlib.import_module(f"{addon}.prt_addon.{room}.{name}")
     return Modules()
 
 
@@ -114,18 +114,16 @@ def run_cli(*args, cwd=ROOT, timeout=600):
 
 @pytest.fixture
 def chunks_baked_here(monkeypatch):
-    """Slows every chunk the test's own process bakes by 20 ms, so worker processes surely take some of a small
-    job; returns the starts of the chunks baked here. Forked workers run the same code in another process."""
+    """The starts of the chunks the test's own process bakes, in order; worker processes run the same code
+    elsewhere, unrecorded."""
     import bpy  # noqa: F401  (before mathutils, which the core imports)
     from prt_addon.core import bake
-    import time
     here, real, baked = os.getpid(), bake.bake_chunk, []
 
-    def slowed(caster, receiver, start, stop, settings):
+    def recorded(caster, receiver, start, stop, settings):
         if os.getpid() == here:
             baked.append(start)
-            time.sleep(0.02)
         return real(caster, receiver, start, stop, settings)
 
-    monkeypatch.setattr(bake, "bake_chunk", slowed)
+    monkeypatch.setattr(bake, "bake_chunk", recorded)
     return baked

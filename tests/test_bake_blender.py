@@ -8,10 +8,11 @@ import numpy as np
 import pytest
 
 from conftest import ROOT, run_cli
-from prt_addon import mesh_data
-from prt_addon.baking import SceneBake
+from prt_addon.blender import storage
+from prt_addon.blender.scene_bake import SceneBake
 from prt_addon.core import lobes
 from prt_addon.core.bake import BakeSettings
+from prt_addon.core.errors import InputError, StaleBake
 
 COEFFICIENT_NAMES = [f"_prt_t{j:02d}" for j in range(6)]  # order 4: 16 coefficients, 3 per attribute
 
@@ -55,7 +56,7 @@ def bake(**settings):
 
 
 def transfer_of(ob):
-    return mesh_data.read_transfer(ob.data)
+    return storage.read_transfer(ob.data)
 
 
 def test_bake_stores_attributes_and_metadata(empty_scene):
@@ -172,7 +173,7 @@ def test_stale_bake_is_detected(empty_scene):
     select(floor)
     bake()
     floor.data.vertices.add(1)
-    with pytest.raises(mesh_data.StaleBake, match="Floor.*81 vertices.*82"):
+    with pytest.raises(StaleBake, match="Floor.*81 vertices.*82"):
         transfer_of(floor)
 
 
@@ -235,12 +236,12 @@ def test_loose_and_degenerate_vertices_get_zero_transfer_with_a_note(empty_scene
 
 def test_edit_mode_and_bad_settings_are_refused_before_any_work(empty_scene):
     floor = grid("Floor")
-    with pytest.raises(mesh_data.InputError, match="order must be 1-10"):
+    with pytest.raises(InputError, match="order must be 1-10"):
         SceneBake(bpy.context, BakeSettings(order=12), ["Floor"])
     bpy.context.view_layer.objects.active = floor
     bpy.ops.object.mode_set(mode="EDIT")
     try:
-        with pytest.raises(mesh_data.InputError, match="'Floor' is in Edit Mode"):
+        with pytest.raises(InputError, match="'Floor' is in Edit Mode"):
             SceneBake(bpy.context, BakeSettings(), ["Floor"])
     finally:
         bpy.ops.object.mode_set(mode="OBJECT")

@@ -1,9 +1,8 @@
 """The shadowed estimator against closed forms, its error estimate against its actual error."""
 
+import itertools
 import os
 import sys
-import threading
-import time
 
 import bpy  # noqa: F401  (mathutils comes with bpy)
 import numpy as np
@@ -12,7 +11,7 @@ from numpy.polynomial import legendre
 
 from quadrature import polygon_transfer
 
-from prt_addon.core import bake, job, polygons
+from prt_addon.core import bake, job, polygons, workers
 
 
 def disc(radius, height, segments=720):
@@ -159,61 +158,84 @@ def test_target_error_is_met_per_vertex():
     assert result.rays.max() > result.rays.min()  # rays went where the error was
 
 
-@pytest.mark.parametrize("launch", [[sys.executable, "-c"], job.FORK], ids=["spawned", "forked"])
-def test_workers_give_bit_identical_results(launch, chunks_baked_here):
+def bake_alone_and_with_a_worker(launch, owners=None):
+    """The same 600 vertices (5 chunks) baked by this process alone, then with one worker started by `launch`."""
     rng = np.random.default_rng(5)
     positions = np.column_stack([rng.uniform(-1.5, 1.5, (600, 2)), np.zeros(600)])
     receiver = bake.Receiver("w", positions, np.tile([0.0, 0.0, 1.0], (600, 1)), 21)
     settings = bake.BakeSettings(order=4, samples=64, target_error=0.05, max_samples=1024)
     one = job.TransferJob([receiver], disc(1.0, 1.0), settings, workers=1).run()[0]
-    chunks_baked_here.clear()
-    two_workers = job.TransferJob([receiver], disc(1.0, 1.0), settings, workers=2, worker_command=launch)
+    two_workers = job.TransferJob([receiver], disc(1.0, 1.0), settings, workers=2, worker_command=launch,
+                                  owners=owners)
     two_workers.min_rays_for_workers = 0  # a job this small would otherwise stay in one process
     two_workers.worker_start_s = 0.0      # and a spawned worker's share is not cut for its start-up
-    two = two_workers.run()[0]
+    return one, two_workers
+
+
+def assert_bit_identical(one, two):
     np.testing.assert_array_equal(one.transfer, two.transfer)
     np.testing.assert_array_equal(one.std_error, two.std_error)
     np.testing.assert_array_equal(one.rays, two.rays)
-    assert two_workers.done_vertices == 600  # the worker's progress lines arrived
-    assert 0 < len(chunks_baked_here) < len(two_workers.chunks)  # both processes baked
 
 
-def test_the_chunk_queue_hands_each_chunk_to_exactly_one_process_and_stops_when_abandoned():
-    chunks = job._ChunkQueue(range(50_000))  # more records than a pipe holds: the filler waits for readers
+@pytest.mark.parametrize("launch, owners, starts_here", [
+    ([sys.executable, "-c"], None, [0, 256, 512]),  # chunk_owners' split: interleaved when workers start at once
+    (workers.FORK, [1, 0, 1, 1, 0], [128, 512]),    # a fixed split instead of the shared queue
+], ids=["spawned", "forked"])
+def test_workers_give_bit_identical_results(launch, owners, starts_here, chunks_baked_here):
+    one, two_workers = bake_alone_and_with_a_worker(launch, owners)
+    chunks_baked_here.clear()
+    two = two_workers.run()[0]
+    assert_bit_identical(one, two)
+    assert chunks_baked_here == starts_here  # this process baked its chunks and no other, the worker the rest
+    assert two_workers.done_vertices == 600  # the worker's progress lines arrived, each chunk counted once
+
+
+def test_forked_workers_taking_chunks_from_the_shared_queue_give_bit_identical_results(chunks_baked_here):
+    """Who takes which chunk depends on the machine's load; the results and the count of vertices do not."""
+    one, two_workers = bake_alone_and_with_a_worker(workers.FORK)
+    chunks_baked_here.clear()
+    two = two_workers.run()[0]
+    assert_bit_identical(one, two)
+    assert len(set(chunks_baked_here)) == len(chunks_baked_here)
+    assert two_workers.done_vertices == 600  # each chunk baked exactly once, here or in the worker
+
+
+def test_the_chunk_queue_hands_each_chunk_to_exactly_one_process():
+    chunks = workers.ChunkQueue(range(50_000))  # more records than a pipe holds: the filler waits for readers
+    taken_by_the_worker, taken_here_meanwhile = 1_000, 20_000  # together fewer than all: neither runs short
     read_back, write_back = os.pipe()
     child = os.fork()
-    if child == 0:  # a forked worker: takes chunks until the queue ends, reports them, leaves
-        chunks.in_worker()
-        os.close(read_back)
-        taken = np.fromiter(chunks, dtype=np.int64)
-        with os.fdopen(write_back, "wb") as out:
-            out.write(taken.tobytes())
-        os._exit(0)
+    if child == 0:  # a forked worker: takes its chunks while this process takes others, reports them, leaves
+        try:
+            chunks.in_worker()
+            os.close(read_back)
+            taken = np.fromiter(itertools.islice(chunks, taken_by_the_worker), dtype=np.int64)
+            with os.fdopen(write_back, "wb") as out:
+                out.write(taken.tobytes())
+        finally:
+            os._exit(0)  # never back into pytest: a failure shows as a short report
     os.close(write_back)
     chunks.fill()
-    here = []
-    for index in chunks:
-        here.append(index)
-        if len(here) % 500 == 0:
-            time.sleep(0.001)  # the worker gets its share even on a busy machine
-    here = np.array(here)
+    taking = iter(chunks)
+    here = list(itertools.islice(taking, taken_here_meanwhile))
     with os.fdopen(read_back, "rb") as back:
-        there = np.frombuffer(back.read(), dtype=np.int64)
+        there = np.frombuffer(back.read(), dtype=np.int64)  # the worker has taken its chunks
+    here = np.array(here + list(taking))  # the rest, until the queue ends
     os.waitpid(child, 0)
     chunks.close()
-    assert len(here) > 0 and len(there) > 0
+    assert len(there) == taken_by_the_worker and len(here) == 50_000 - taken_by_the_worker
     np.testing.assert_array_equal(np.sort(np.concatenate([here, there])), np.arange(50_000))
     assert np.all(np.diff(here) > 0) and np.all(np.diff(there) > 0)  # in order, none twice
 
-    abandoned = job._ChunkQueue(range(50_000))
-    before = threading.active_count()
+
+def test_an_abandoned_chunk_queue_stops_filling():
+    abandoned = workers.ChunkQueue(range(50_000))  # more records than a pipe holds: the filler blocks
     abandoned.fill()
     first = next(iter(abandoned))
-    abandoned.close()  # a cancelled bake: the filler, blocked on a full pipe, must end
-    deadline = time.monotonic() + 5.0
-    while threading.active_count() > before and time.monotonic() < deadline:
-        time.sleep(0.01)
-    assert first == 0 and threading.active_count() == before
+    abandoned.close()  # a cancelled bake: the filler, maybe blocked on a full pipe, must end
+    abandoned.filler.join(timeout=5.0)  # a bound for a filler that never ends, not a race
+    assert first == 0 and not abandoned.filler.is_alive()
 
 
 def test_batching_a_round_never_changes_a_result(monkeypatch):
@@ -249,7 +271,7 @@ def test_settings_out_of_range_are_named(field, value):
 
 
 def test_chunk_split_gives_this_process_the_workers_start_up_time():
-    owners = job.chunk_owners(200, 2, estimated_s=10.0, start_s=1.0)
+    owners = workers.chunk_owners(200, 2, estimated_s=10.0, start_s=1.0)
     assert owners.count(0) == 110 and owners.count(1) == 90  # t = 5.5 s: 55 % here, 45 % in the worker
-    assert job.chunk_owners(6, 3, estimated_s=10.0, start_s=0.0) == [0, 1, 2, 0, 1, 2]  # interleaved
-    assert set(job.chunk_owners(10, 2, estimated_s=0.1, start_s=1.0)) == {0}  # not worth starting one
+    assert workers.chunk_owners(6, 3, estimated_s=10.0, start_s=0.0) == [0, 1, 2, 0, 1, 2]  # interleaved
+    assert set(workers.chunk_owners(10, 2, estimated_s=0.1, start_s=1.0)) == {0}  # not worth starting one

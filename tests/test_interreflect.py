@@ -6,7 +6,7 @@ import bpy  # noqa: F401  (mathutils comes with bpy)
 import numpy as np
 import pytest
 
-from prt_addon.core import bake, interreflect, job
+from prt_addon.core import bake, interreflect, job, workers
 
 
 def closed_box(cuts=4, size=2.0):
@@ -49,7 +49,7 @@ def closed_box(cuts=4, size=2.0):
 
 def interreflected_job(vertices, triangles, normals, albedo, **settings):
     receiver = bake.Receiver("box", vertices, normals, 9)
-    occluders = bake.Occluders(vertices, triangles, vertices.copy())
+    occluders = bake.Occluders(vertices, triangles, vertices.copy(), solved_vertices=len(vertices))
     the_job = job.TransferJob([receiver], occluders, bake.BakeSettings(mode="interreflected", **settings),
                               albedo=[albedo])
     return the_job, the_job.run()
@@ -117,7 +117,7 @@ def test_white_floor_turns_red_beside_a_red_wall():
     normals = np.vstack([np.tile([0.0, 0.0, 1.0], (121, 1)), np.tile([-1.0, 0.0, 0.0], (121, 1))])
     albedo = np.vstack([np.tile([0.8, 0.8, 0.8], (121, 1)), np.tile([0.8, 0.05, 0.05], (121, 1))])
     receiver = bake.Receiver("room", vertices, normals, 4)
-    the_job = job.TransferJob([receiver], bake.Occluders(vertices, triangles, vertices.copy()),
+    the_job = job.TransferJob([receiver], bake.Occluders(vertices, triangles, vertices.copy(), solved_vertices=len(vertices)),
                               bake.BakeSettings(mode="interreflected", order=3, samples=256, bounces=3),
                               albedo=[albedo])
     (result,) = the_job.run()
@@ -130,20 +130,32 @@ def test_white_floor_turns_red_beside_a_red_wall():
     assert summary.bounce_changes[0] > summary.bounce_changes[1] > summary.bounce_changes[2] > 0
 
 
-@pytest.mark.parametrize("launch", [[sys.executable, "-c"], job.FORK], ids=["spawned", "forked"])
+def records_in_chunk_order(the_job):
+    """The job's hit records as (vertex, triangle, barycentric, weight), chunk by chunk, whichever process baked
+    each chunk and whenever its records arrived (a stable sort keeps each chunk's own order)."""
+    records = interreflect.HitRecords.concatenate(the_job.records)
+    order = np.argsort(records.vertex // bake.CHUNK_VERTICES, kind="stable")
+    return [getattr(records, name)[order] for name in ("vertex", "triangle", "barycentric", "weight")]
+
+
+@pytest.mark.parametrize("launch", [[sys.executable, "-c"], workers.FORK], ids=["spawned", "forked"])
 def test_workers_bring_back_the_hit_records_bit_identically(launch, chunks_baked_here):
     """The bounces gather over every chunk's hit records, so the records must come back from the workers whole."""
     vertices, triangles, normals = closed_box(cuts=8)  # 386 vertices: 4 chunks
     settings = bake.BakeSettings(mode="interreflected", order=3, samples=64, bounces=2)
     albedo = np.full((len(vertices), 1), 0.7)
-    _, (one,) = interreflected_job(vertices, triangles, normals, albedo, order=3, samples=64, bounces=2)
+    one_process, (one,) = interreflected_job(vertices, triangles, normals, albedo, order=3, samples=64, bounces=2)
     two_workers = job.TransferJob([bake.Receiver("box", vertices, normals, 9)],
-                                  bake.Occluders(vertices, triangles, vertices.copy()), settings, workers=2,
-                                  worker_command=launch, albedo=[albedo])
-    two_workers.min_rays_for_workers, two_workers.worker_start_s = 0, 0.0
+                                  bake.Occluders(vertices, triangles, vertices.copy(), solved_vertices=len(vertices)), settings, workers=2,
+                                  worker_command=launch, albedo=[albedo], owners=[1, 0, 1, 0])
+    two_workers.min_rays_for_workers = 0  # a job this small would otherwise stay in one process
     chunks_baked_here.clear()
     (two,) = two_workers.run()
-    assert 0 < len(chunks_baked_here) < len(two_workers.chunks)  # the worker baked some chunks too
-    assert sum(len(r.vertex) for r in two_workers.records) > 0
+    assert chunks_baked_here == [128, 384]  # this process baked chunks 1 and 3, the worker 0 and 2
+    # No sky is visible from inside the box, so the transfer is 0 either way: the records must be compared.
+    expected, returned = records_in_chunk_order(one_process), records_in_chunk_order(two_workers)
+    assert len(expected[0]) > 0
+    for expected_field, returned_field in zip(expected, returned):
+        np.testing.assert_array_equal(expected_field, returned_field)
     np.testing.assert_array_equal(one.transfer, two.transfer)
     np.testing.assert_array_equal(one.std_error, two.std_error)

@@ -6,8 +6,8 @@ import bpy
 import numpy as np
 
 from conftest import run_cli
-from prt_addon import mesh_data
-from prt_addon.baking import SceneBake
+from prt_addon.blender import geometry, storage
+from prt_addon.blender.scene_bake import SceneBake
 from prt_addon.core import lobes, shading
 from prt_addon.core.bake import BakeSettings
 from test_bake_blender import add_mesh, grid
@@ -50,7 +50,7 @@ def test_cornell_floor_turns_red_near_the_red_wall_and_green_near_the_green(empt
     floor, red, green = cornell()
     scene_bake = SceneBake(bpy.context, BakeSettings(mode="interreflected", order=3, samples=128), ["Floor"])
     summary = scene_bake.run(log=lambda line: None)
-    transfer, meta = mesh_data.read_transfer(floor.data)
+    transfer, meta = storage.read_transfer(floor.data)
     assert transfer.shape == (81, 3, 9) and meta["channels"] == 3 and meta["bounces"] >= 1
     assert "prt" not in red.data and "prt" not in green.data  # they only reflected light
     positions = np.array([v.co[:] for v in floor.data.vertices])
@@ -60,7 +60,7 @@ def test_cornell_floor_turns_red_near_the_red_wall_and_green_near_the_green(empt
     assert sky[near_red, 0] > 1.05 * sky[near_red, 1]
     assert sky[near_green, 1] > 1.05 * sky[near_green, 0]
     assert summary.bounce_changes and summary.bounce_changes[0] < 1
-    report = scene_bake.report_dict()
+    report = scene_bake.report().as_dict()
     assert report["bounces"] == summary.bounces and set(report["phases_s"]) >= {"rays_s", "bounces_s"}
 
 
@@ -72,20 +72,20 @@ def test_grey_scene_keeps_one_channel_and_texture_albedo_is_sampled(empty_scene)
     image.pixels.foreach_set(pixels.ravel())
     textured = coloured(wall("Textured", 1.0), (0.8, 0.8, 0.8), texture=image)
     notes = []
-    surface = mesh_data.surface_from_object(textured, bpy.context.evaluated_depsgraph_get(), notes, albedo=True)
+    surface = geometry.surface_from_object(textured, bpy.context.evaluated_depsgraph_get(), notes, albedo=True)
     assert any("no UV map" in note for note in notes)  # add_mesh makes no UVs: the colour value is used
     np.testing.assert_allclose(surface.albedo, 0.8)
     textured.data.uv_layers.new(name="UVMap")
     uv = np.array([[v.co.y * 0.5 + 0.5, v.co.z * 0.5] for v in textured.data.vertices])
     corner_vertex = [loop.vertex_index for loop in textured.data.loops]
     textured.data.uv_layers["UVMap"].data.foreach_set("uv", uv[corner_vertex].ravel())
-    surface = mesh_data.surface_from_object(textured, bpy.context.evaluated_depsgraph_get(), [], albedo=True)
+    surface = geometry.surface_from_object(textured, bpy.context.evaluated_depsgraph_get(), [], albedo=True)
     left, right = surface.albedo[uv[:, 0] < 0.4], surface.albedo[uv[:, 0] > 0.6]
     assert np.all(left > 0.9) and np.all(right[:, 0] > 0.9) and np.all(right[:, 1:] < 0.1)
     textured.data.materials.clear()  # now everything is grey (Blender's default)
     scene_bake = SceneBake(bpy.context, BakeSettings(mode="interreflected", order=2, samples=32), ["Floor"])
     scene_bake.run(log=lambda line: None)
-    transfer, meta = mesh_data.read_transfer(floor.data)
+    transfer, meta = storage.read_transfer(floor.data)
     assert transfer.shape == (25, 4) and meta["channels"] == 1
 
 
@@ -93,7 +93,7 @@ def test_rgb_bake_relights_and_exports(empty_scene, tmp_path):
     floor, red, green = cornell()
     SceneBake(bpy.context, BakeSettings(mode="interreflected", order=3, samples=64, bounces=2),
               ["Floor"]).run(log=lambda line: None)
-    transfer, _ = mesh_data.read_transfer(floor.data)
+    transfer, _ = storage.read_transfer(floor.data)
     light = np.tile(lobes.constant_sky(3, 1.0), (3, 1))
     radiance = shading.shade(transfer, light)
     np.testing.assert_allclose(radiance, np.einsum("vck,ck->vc", transfer, light), rtol=1e-6)
@@ -118,7 +118,7 @@ def test_albedo_is_read_from_the_own_materials_while_the_prt_display_stands_in(e
     bpy.context.scene.prt_display.show_prt = True  # the add-on's handler swaps in its display materials
     depsgraph = bpy.context.evaluated_depsgraph_get()
     assert floor.active_material.name != "Floor colour"
-    surface = mesh_data.surface_from_object(floor, depsgraph, [], albedo=True)
+    surface = geometry.surface_from_object(floor, depsgraph, [], albedo=True)
     np.testing.assert_allclose(surface.albedo, np.tile([0.7, 0.1, 0.2], (9, 1)), rtol=1e-6)
 
 
@@ -126,22 +126,23 @@ def test_cornell_colour_bleeding_on_the_floor_is_within_10_percent_of_cycles_ind
     """White floor, red and green walls, the same band-limited light: the bounced light PRT adds to floor vertices
     (interreflected − shadowed, same seed so the direct parts are identical) against Cycles' diffuse indirect
     light alone at those vertices, RMS over the floor relative to the RMS of Cycles' indirect light."""
-    from prt_addon import validate
+    from prt_addon.blender import cycles, materials, validation
+    from prt_addon.core import lights
     floor, red, green = cornell()
     order, seed, bounces = 3, 5, 3
     direct = SceneBake(bpy.context, BakeSettings(order=order, samples=512, seed=seed), ["Floor"])
     direct.run(log=lambda line: None)
-    shadowed, _ = mesh_data.read_transfer(floor.data)
+    shadowed, _ = storage.read_transfer(floor.data)
     SceneBake(bpy.context, BakeSettings(mode="interreflected", order=order, samples=512, seed=seed,
                                         bounces=bounces), ["Floor"]).run(log=lambda line: None)
-    interreflected, _ = mesh_data.read_transfer(floor.data)
-    light = validate.default_light(order)
+    interreflected, _ = storage.read_transfer(floor.data)
+    light = lights.default_light(order)
     albedo = np.tile([0.8, 0.8, 0.8], (len(floor.data.vertices), 1))
     prt_bounced = albedo * (shading.shade(interreflected, light) - shading.shade(shadowed, light))
-    albedos = {ob: validate.vertex_albedo(ob, []) for ob in (floor, red, green)}
-    group = validate.LightGroup([floor], lobes.reconstruct_equirect(light, *validate.ENVIRONMENT_SIZE), bounces,
-                                indirect_only=True)
-    reference = validate.CyclesReference(bpy.context, [group], albedos, samples=256, passes=2)
+    albedos = {ob: materials.vertex_albedo(ob, ob.data, []) for ob in (floor, red, green)}
+    group = cycles.LightGroup([floor], lobes.reconstruct_equirect(light, *validation.ENVIRONMENT_SIZE), bounces,
+                              indirect_only=True)
+    reference = cycles.CyclesReference(bpy.context, [group], albedos, samples=256, passes=2)
     while not reference.step():
         pass
     cycles_bounced = np.mean(reference.radiance["Floor"], axis=0)

@@ -67,7 +67,7 @@ def test_hdri_with_a_sun_spike_rings_and_windowing_tames_it(sunrise):
 
 def test_negative_light_is_clamped_to_black_in_the_display_colours():
     """Documented behaviour: shading goes negative under a ringing light; the colours written are clamped to 0."""
-    from prt_addon import display
+    from prt_addon.blender import display
     mesh = bpy.data.meshes.new("probe")
     mesh.from_pydata([(0, 0, 0), (1, 0, 0), (0, 1, 0)], [], [(0, 1, 2)])
     normals = np.array([[0.0, 0.0, 1.0], [0.0, 0.0, -1.0], [1.0, 0.0, 0.0]])
@@ -84,8 +84,8 @@ def test_negative_light_is_clamped_to_black_in_the_display_colours():
 
 
 def test_an_environment_whose_image_file_is_missing_does_not_shine_and_says_so(empty_scene, tmp_path, capfd):
-    from prt_addon import mesh_data
-    from prt_addon.baking import SceneBake
+    from prt_addon.blender import storage
+    from prt_addon.blender.scene_bake import SceneBake
     from prt_addon.core.bake import BakeSettings
     from test_bake_blender import grid
     floor = grid("Floor", cuts=2)
@@ -97,7 +97,7 @@ def test_an_environment_whose_image_file_is_missing_does_not_shine_and_says_so(e
     bpy.ops.prt.light_add(kind="ENVIRONMENT")
     empty_scene.prt_lights[-1].image = missing
     bpy.context.evaluated_depsgraph_get().update()
-    transfer, _ = mesh_data.read_transfer(floor.data)
+    transfer, _ = storage.read_transfer(floor.data)
     written = np.empty(len(floor.data.vertices) * 4, dtype=np.float32)
     floor.data.color_attributes["prt_color"].data.foreach_get("color", written)
     sky_only = shading.shade(transfer, np.tile(lobes.constant_sky(ORDER, 1.0), (3, 1)))

@@ -13,7 +13,8 @@ from bpy_extras.object_utils import world_to_camera_view
 from mathutils import Vector
 
 from conftest import FakeLayout, run_cli
-from prt_addon import baking, mesh_data, scenes
+from prt_addon.blender import sample_scenes, storage
+from prt_addon.blender.scene_bake import SceneBake
 from prt_addon.core import bake, lobes, shading
 
 ORDER = 4
@@ -26,7 +27,7 @@ def update():
 
 
 def bake_scene(samples=16):
-    baking.SceneBake(bpy.context, bake.BakeSettings(order=ORDER, mode="shadowed", samples=samples)).run(
+    SceneBake(bpy.context, bake.BakeSettings(order=ORDER, mode="shadowed", samples=samples)).run(
         log=lambda line: None)
 
 
@@ -42,7 +43,7 @@ def plane(empty_scene):
 def demo_blend(addon, tmp_path_factory):
     """The demo scene (torus over a floor and two walls), baked once for the module."""
     bpy.ops.wm.read_homefile(use_empty=True)
-    scenes.build_demo_scene()
+    sample_scenes.build_demo_scene()
     bake_scene(samples=32)
     path = str(tmp_path_factory.mktemp("demo") / "demo_baked.blend")
     bpy.ops.wm.save_as_mainfile(filepath=path)
@@ -75,7 +76,7 @@ def sun_light(theta, phi, radius, strength):
 
 
 def expected_colours(mesh, light):
-    transfer, _ = mesh_data.read_transfer(mesh)
+    transfer, _ = storage.read_transfer(mesh)
     return np.maximum(transfer.astype(np.float64) @ light, 0.0)
 
 
@@ -189,7 +190,8 @@ def test_window_is_applied_to_the_sum(plane):
 def counted(prt, monkeypatch):
     """Counts of the handler's refreshes and of colour writes, from now on."""
     counts = {"refresh": 0, "write": 0}
-    refresh, write = prt.handlers.refresh, prt.display.write_display_colours
+    engine = prt.handlers.engine
+    refresh, write = engine.refresh, prt.display.write_display_colours
 
     def counting_refresh(*args):
         counts["refresh"] += 1
@@ -199,7 +201,7 @@ def counted(prt, monkeypatch):
         counts["write"] += 1
         return write(*args)
 
-    monkeypatch.setattr(prt.handlers, "refresh", counting_refresh)
+    monkeypatch.setattr(engine, "refresh", counting_refresh)
     monkeypatch.setattr(prt.display, "write_display_colours", counting_write)
 
     def taken():
@@ -273,7 +275,7 @@ def test_keyframed_light_relights_every_frame_and_renders_differ(plane, prt, tmp
     scene.collection.objects.link(camera)
     scene.camera = camera
     scene.frame_start, scene.frame_end = 1, 3
-    prt.relight.render(scene, str(tmp_path / "still.png"), "WORKBENCH", resolution=(32, 24))
+    prt.render.render(scene, str(tmp_path / "still.png"), "WORKBENCH", resolution=(32, 24))
     scene.render.filepath = str(tmp_path / "frame_")
     bpy.ops.render.render(animation=True)
     centre = [read_png(str(tmp_path / f"frame_{frame:04d}.png"))[12, 16, 0] for frame in (1, 2, 3)]
@@ -417,7 +419,7 @@ def test_render_is_darker_in_the_torus_shadow_and_the_shadow_moves_with_the_sun(
         sun.theta, sun.phi = math.radians(theta), math.radians(phi)
         update()
         path = str(tmp_path / f"sun_{phi:.0f}.png")
-        prt.relight.render(demo, path, "WORKBENCH", resolution=(160, 120))
+        prt.render.render(demo, path, "WORKBENCH", resolution=(160, 120))
         images.append(read_png(path))
         samples.append(floor_samples(demo, shading.direction_from_angles(sun.theta, sun.phi)))
     for image, (shadowed, lit) in zip(images, samples):
@@ -454,7 +456,7 @@ def test_eevee_render_shows_prt_colour_times_albedo_texture(plane, prt, tmp_path
     scene.collection.objects.link(camera)
     scene.camera = camera
     path = str(tmp_path / "eevee.png")
-    prt.relight.render(scene, path, "EEVEE", samples=1, resolution=SMALL)
+    prt.render.render(scene, path, "EEVEE", samples=1, resolution=SMALL)
     centre = srgb_to_linear(read_png(path)[SMALL[1] // 2, SMALL[0] // 2, :3])
     expected = np.array(albedo) * 1.5 / math.pi * POINT_SUN_PEAK
     np.testing.assert_allclose(centre, expected, atol=0.01)

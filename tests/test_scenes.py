@@ -4,7 +4,7 @@ import pytest
 from bpy_extras.object_utils import world_to_camera_view
 from mathutils import Vector
 
-from prt_addon import scenes
+from prt_addon.blender import sample_scenes as scenes
 
 
 def build_fresh(build):

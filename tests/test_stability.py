@@ -7,10 +7,10 @@ import bpy
 import numpy as np
 import pytest
 
-from prt_addon import mesh_data
-from prt_addon.baking import SceneBake
-from prt_addon.core import bake, job, lobes, sh
+from prt_addon.blender.scene_bake import SceneBake
+from prt_addon.core import bake, lobes, sh, workers
 from prt_addon.core.bake import BakeSettings
+from prt_addon.core.errors import StaleBake
 from quadrature import sphere_quadrature
 from test_bake_blender import add_mesh, box, grid, transfer_of
 
@@ -141,24 +141,25 @@ def spawned_worker_out_of_memory(scene_bake, monkeypatch):
 
 
 def forked_worker_out_of_memory_on_its_third_chunk(scene_bake, monkeypatch):
-    assert scene_bake.job.worker_command == job.FORK
-    baking_process, slowed_here, chunks_baked = os.getpid(), job.bake.bake_chunk, []
+    assert scene_bake.job.worker_command == workers.FORK
+    scene_bake.job.owners = [1] * len(scene_bake.job.chunks)  # the worker bakes every chunk: it reaches a third
+    baking_process, real_bake_chunk, chunks_baked = os.getpid(), bake.bake_chunk, []
 
     def failing_in_the_worker(*args):
         if os.getpid() != baking_process:
             chunks_baked.append(args[2])
             if len(chunks_baked) == 3:
                 raise MemoryError("worker ran out of memory on its third chunk")
-        return slowed_here(*args)
+        return real_bake_chunk(*args)
 
-    monkeypatch.setattr(job.bake, "bake_chunk", failing_in_the_worker)
+    monkeypatch.setattr(bake, "bake_chunk", failing_in_the_worker)
     return "MemoryError: worker ran out of memory on its third chunk"
 
 
 @pytest.mark.parametrize("make_a_worker_fail", [spawned_worker_out_of_memory,
                                                 forked_worker_out_of_memory_on_its_third_chunk])
 def test_a_worker_failing_halfway_is_reported_and_keeps_the_previous_data(empty_scene, monkeypatch,
-                                                                          chunks_baked_here, make_a_worker_fail):
+                                                                          make_a_worker_fail):
     floor, _ = grid("Floor", cuts=30), box("Cube")
     bake_objects(["Floor"], order=3)
     before, meta_before = transfer_of(floor)
@@ -194,7 +195,7 @@ def test_attributes_deleted_by_hand_are_reported_not_misread(empty_scene):
     floor, _ = grid("Floor"), box("Cube")
     bake_objects(["Floor"])
     floor.data.attributes.remove(floor.data.attributes["_prt_t03"])
-    with pytest.raises(mesh_data.StaleBake, match="lost its PRT attributes _prt_t03"):
+    with pytest.raises(StaleBake, match="lost its PRT attributes _prt_t03"):
         transfer_of(floor)
 
 

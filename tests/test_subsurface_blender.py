@@ -3,8 +3,8 @@
 import bpy
 import numpy as np
 
-from prt_addon import mesh_data
-from prt_addon.baking import SceneBake
+from prt_addon.blender import storage
+from prt_addon.blender.scene_bake import SceneBake
 from prt_addon.core import shading
 from prt_addon.core.bake import BakeSettings
 from test_bake_blender import add_mesh
@@ -34,7 +34,7 @@ def slab(name, thickness):
 
 def glow_on_top(ob):
     """Mean radiance of the top face under a unit sun straight below."""
-    transfer, meta = mesh_data.read_transfer(ob.data)
+    transfer, meta = storage.read_transfer(ob.data)
     light = np.tile(shading.sun_coefficients(meta["order"], [0.0, 0.0, -1.0], 0.0, 1.0), (3, 1))
     radiance = 0.8 * shading.shade(transfer, light)
     top = np.array([v.co.z for v in ob.data.vertices]) > 0
@@ -57,7 +57,7 @@ def test_thin_slab_lit_from_behind_glows_and_a_thick_one_does_not(empty_scene):
     slab("Thin", 0.5 * MEAN_FREE_PATH)
     slab("Thick", 10 * MEAN_FREE_PATH).location.x = 5.0
     scene_bake, wax = bake_glow(["Thin", "Thick"], 1.0)
-    assert sorted(scene_bake.report_dict()["subsurface_objects"]) == ["Thick", "Thin"]
+    assert sorted(scene_bake.report().as_dict()["subsurface_objects"]) == ["Thick", "Thin"]
     _, plain = bake_glow(["Thin", "Thick"], 0.0)
     through_thin = wax["Thin"][0] - plain["Thin"][0]
     through_thick = wax["Thick"][0] - plain["Thick"][0]

@@ -1,23 +1,21 @@
-"""Ground truth from Cycles (`prt validate` and the panel's button) and the error-against-run-time study
-(`prt convergence`).
+"""Ground truth from Cycles (`prt validate` and the panel's button).
 
 Cycles lit by the SH-reconstructed light is what PRT must match up to Monte Carlo noise. Both sides are noisy, so
 validation runs Cycles in passes with different seeds and takes Cycles' own noise, measured from their spread, out
-of the measured difference: modest Cycles samples then still judge PRT's own error (validate.py).
+of the measured difference: modest Cycles samples then still judge PRT's own error (blender/validation.py).
 SH lights are the installed add-on's properties, so validation runs through its modules (`prt`).
 """
 
-import csv
 import json
 import math
 
 import bpy
 import numpy as np
 
-from conftest import ROOT, FakeLayout, run_cli
-from prt_addon import plot, scenes
-from prt_addon.baking import SceneBake
-from prt_addon.core import lobes
+from conftest import FakeLayout, run_cli
+from prt_addon.blender import sample_scenes
+from prt_addon.blender.scene_bake import SceneBake
+from prt_addon.core import lights, lobes
 from prt_addon.core.bake import BakeSettings
 from test_bake_blender import add_mesh, box, grid
 
@@ -39,7 +37,7 @@ def add_windowed_sun_over_sky(scene):
 
 
 def validated(prt, samples, passes=4, names=None):
-    validation = prt.validate.Validation(bpy.context, samples, passes, names)
+    validation = prt.validation.Validation(bpy.context, samples, passes, names)
     return validation, validation.run(log=lambda line: None)
 
 
@@ -55,7 +53,7 @@ def test_demo_scene_shadowed_at_default_settings_agrees_with_cycles(empty_scene,
     PRT's error is sqrt(measured² − noise²) without a high-sample render, which would take minutes. Measured: PRT
     1.04 % (torus 0.9 %, floor and walls 1.3-1.5 %, higher along the seams where walls meet the floor), Cycles'
     noise 0.97 %, measured 1.42 %; with 4 × 128 samples, Cycles' noise 0.32 %, PRT's error is 1.01 %."""
-    scenes.build_demo_scene()
+    sample_scenes.build_demo_scene()
     bake()
     add_windowed_sun_over_sky(empty_scene)
     validation, comparisons = validated(prt, samples=32)
@@ -175,7 +173,7 @@ def test_the_panel_button_validates_stores_the_result_and_restores_the_scene_exa
     bpy.types.PRT_PT_validate.draw(type("Panel", (), {"layout": FakeLayout(drawn)})(), bpy.context)
     assert drawn == ["samples", "passes"]
     # The bake read its albedo through the display's stand-in; so does validation, from the original material.
-    validation = prt.validate.Validation(bpy.context, 1, 2, ["Floor"])
+    validation = prt.validation.Validation(bpy.context, 1, 2, ["Floor"])
     np.testing.assert_allclose(validation.albedos[floor], np.tile((0.2, 0.5, 0.7), (81, 1)), rtol=1e-6)
     assert_same_state(before)
 
@@ -185,15 +183,15 @@ def test_a_ringing_light_is_measured_and_reported_and_the_default_light_does_not
     bake(samples=16)
     bpy.ops.prt.light_add(kind="SUN")
     empty_scene.prt_lights[0].angular_radius = 0.0  # a point sun, unwindowed: its reconstruction goes negative
-    ringing = prt.validate.Validation(bpy.context, 1, 2)
+    ringing = prt.validation.Validation(bpy.context, 1, 2)
     assert ringing.clamped[4] > 0.01
     assert any("rings" in note and "Window" in note for note in ringing.notes)
     bpy.ops.prt.light_remove()
-    default = prt.validate.Validation(bpy.context, 1, 2)
+    default = prt.validation.Validation(bpy.context, 1, 2)
     assert not default.scene_light and default.clamped == {4: 0.0}
     assert any("default light" in note for note in default.notes)
     for order in range(1, 11):  # every order a bake can have (measured minimum 0.21, at order 10)
-        assert lobes.reconstruct_equirect(prt.validate.default_light(order), 64, 128).min() > 0.2
+        assert lobes.reconstruct_equirect(lights.default_light(order), 64, 128).min() > 0.2
 
 
 def test_validate_command_writes_a_line_and_json_and_fails_in_one_line(empty_scene, tmp_path):
@@ -223,42 +221,3 @@ def test_validate_command_writes_a_line_and_json_and_fails_in_one_line(empty_sce
 
 
 # -- error against run time --------------------------------------------------------------------------------------
-
-def test_convergence_estimated_error_is_within_a_factor_of_two_of_the_actual(tmp_path):
-    """`prt convergence` on the demo scene's floor and left wall (shadowed by the torus and by each other), at three
-    sample counts against a 2048-sample bake with another seed: the bake's own estimate is within a factor of 2 of
-    its actual error in the same measure (measured: within 3 %). Also the CSV, the plot and the progress lines."""
-    table, image_path = tmp_path / "convergence.csv", tmp_path / "convergence.png"
-    result = run_cli("convergence", ROOT / "sample_scenes" / "demo_torus.blend", "--objects", "Floor,LeftWall",
-                     "--samples", "16,64,256", "--reference-samples", 2048, "--csv", table, "--plot", image_path)
-    assert result.returncode == 0, result.stderr
-    assert "left" in result.stdout and "reference, 2048 samples" in result.stdout
-    with open(table, newline="") as handle:
-        rows = list(csv.DictReader(handle))
-    assert [int(row["samples"]) for row in rows] == [16, 64, 256]
-    actual = [float(row["actual_rms_rel_error"]) for row in rows]
-    for row, error in zip(rows, actual):
-        assert 0.5 <= float(row["est_rms_rel_error"]) / error <= 2.0, rows
-    assert actual[0] > 2 * actual[1] > 4 * actual[2]  # more rays, less error
-    image = bpy.data.images.load(str(image_path))
-    try:
-        assert tuple(image.size) == (760, 500)
-        pixels = np.empty(len(image.pixels), dtype=np.float32)
-        image.pixels.foreach_get(pixels)
-    finally:
-        bpy.data.images.remove(image)
-    colours = {tuple(rgb) for rgb in np.round(pixels.reshape(-1, 4)[:, :3] * 255).astype(int).tolist()}
-    assert plot.BLUE in colours and plot.VERMILION in colours  # both curves are drawn
-
-
-def test_convergence_against_cycles_measures_the_radiance_error(empty_scene, prt):
-    """With `--reference cycles` the actual error is the radiance's under the (default) light, Cycles' noise
-    taken out: it falls with the bake's samples (measured 6.9 %, 2.2 %, 0.7 % at 16, 64, 256 rays)."""
-    grid("Floor", cuts=16)
-    box("Cube")
-    study = prt.convergence.Study(bpy.context, [16, 256], ["Floor"], reference="cycles", reference_samples=32)
-    rows = study.run(log=lambda line: None)
-    assert [row.samples for row in rows] == [16, 256]
-    assert rows[0].actual_rms_rel_error > 3 * rows[1].actual_rms_rel_error > 0
-    assert rows[1].actual_rms_rel_error < 0.02
-    assert study.reference_text() == "Cycles, 4 × 32 samples"

@@ -2,7 +2,7 @@
 
 Transfer convention: T_k = (1/π) ∫ V(ω) max(n·ω, 0) Y_k(ω) dω, so radiance = albedo · Σ_k L_k T_k.
 
-Shadowed estimator (what makes it cheap compared with the seed's uniform-sphere Monte Carlo):
+Shadowed estimator (what makes it cheap compared with the original program's uniform-sphere Monte Carlo):
 - the unshadowed transfer is exact (closed form) and serves as a control variate:
   T ≈ β·T_unshadowed + mean over cosine-distributed rays of (V − β)·Y, β the vertex's visible fraction, so a
   vertex that sees the whole sky or none of it adds no noise, and one that provably sees the sky casts no ray;
@@ -13,18 +13,13 @@ Shadowed estimator (what makes it cheap compared with the seed's uniform-sphere 
 
 from dataclasses import dataclass, field
 from itertools import chain, repeat
-import math
 from operator import is_not, itemgetter
 import zlib
 
 import numpy as np
 
-from . import interreflect, lobes, polygons, sampling, sh
+from . import interreflect, lobes, polygons, sampling, settings as spec, sh
 
-MODES = ("unshadowed", "shadowed", "interreflected")
-MAX_ORDER = 10
-MIN_SAMPLES = 8
-MAX_SAMPLES = 1 << 20
 MAX_REPLICATES = 16
 # Random streams per vertex (rounds × replicates): MAX_ROUNDS rounds of at most 40 lattice sizes each.
 STREAMS_PER_VERTEX = 4096
@@ -47,36 +42,27 @@ CONVENTION_VERSION = 2
 
 @dataclass
 class BakeSettings:
-    order: int = 4
-    mode: str = "shadowed"
-    samples: int = 256
-    target_error: float = 0.0
-    max_samples: int = 16384
+    """What a bake computes; defaults and ranges are core.settings'."""
+    order: int = spec.ORDER.default
+    mode: str = spec.MODE.default
+    samples: int = spec.SAMPLES.default
+    target_error: float = spec.TARGET_ERROR.default
+    max_samples: int = spec.MAX_SAMPLES.default
     # 4 replicates: error 1.4x smaller than 8 at 256 rays (each replicate's lattice is denser) and still an
     # honest estimate (benchmarks/bake.py); 2 under-reports.
     replicates: int = 4
-    seed: int = 0
+    seed: int = spec.SEED.default
     bounces: int | None = None  # interreflected: a count, or None for 'auto' (until the tail < tolerance)
-    bounce_tolerance: float = 1e-3
+    bounce_tolerance: float = spec.BOUNCE_TOLERANCE.default
 
     def problems(self) -> list[str]:
         """Every reason these settings cannot bake, as sentences for the user."""
-        found = []
-        if self.mode not in MODES:
-            found.append(f"mode must be one of {', '.join(MODES)}, not {self.mode!r}")
-        if not 1 <= self.order <= MAX_ORDER:
-            found.append(f"order must be 1-{MAX_ORDER} bands, not {self.order}")
-        if not MIN_SAMPLES <= self.samples <= MAX_SAMPLES:
-            found.append(f"samples must be {MIN_SAMPLES}-{MAX_SAMPLES} rays per vertex, not {self.samples}")
-        if not (self.target_error >= 0.0 and math.isfinite(self.target_error)):
-            found.append(f"target error must be a finite number >= 0, not {self.target_error}")
+        found = [f"{setting.label.lower()} must be {setting.range_text()}{' or auto' if setting.auto else ''}, "
+                 f"not {getattr(self, setting.name)!r}"
+                 for setting in spec.BAKE if not setting.contains(getattr(self, setting.name))]
         if self.max_samples < self.samples:
             found.append(f"max samples ({self.max_samples}) must be at least samples ({self.samples})")
-        if self.bounces is not None and not 0 <= self.bounces <= 1000:
-            found.append(f"bounces must be 0-1000 or auto, not {self.bounces}")
-        if not 0.0 < self.bounce_tolerance < 1.0:
-            found.append(f"bounce tolerance must be between 0 and 1, not {self.bounce_tolerance}")
-        most_replicates = min(MAX_REPLICATES, max(self.samples, MIN_SAMPLES))  # each replicate needs a ray
+        most_replicates = min(MAX_REPLICATES, max(self.samples, spec.FEWEST_SAMPLES))  # each needs a ray
         if not 2 <= self.replicates <= most_replicates:
             found.append(f"replicates must be 2-{most_replicates}, not {self.replicates}")
         return found
@@ -105,11 +91,15 @@ class Receiver:
 @dataclass
 class Occluders:
     """Triangles that cast shadows, in world space, the points whose hull bounds them, and flat convex polygons
-    among them whose shadows are integrated in closed form."""
+    among them whose shadows are integrated in closed form.
+
+    The first `solved_vertices` vertices are those of the surfaces whose transfer the job solves, in the job's
+    order: interreflection reads a hit triangle's corners as solved vertices, so it needs exactly that."""
     vertices: np.ndarray   # (P, 3) float64
     triangles: np.ndarray  # (T, 3) int
     hull: np.ndarray       # (H, 3) float64: any superset of the convex hull's vertices
     polygons: list = field(default_factory=list)  # (m, 3) float64 corners each; see polygons.py
+    solved_vertices: int = 0
 
     @property
     def center(self) -> np.ndarray:

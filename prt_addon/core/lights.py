@@ -10,14 +10,23 @@ coefficients come from the cache: moving one light of eight recomputes one.
 """
 
 import functools
+import math
 from dataclasses import dataclass, field
 from typing import Callable
 
 import numpy as np
 
-from . import lobes, rotation
+from . import lobes, rotation, shading
 
 RGB = tuple[float, float, float]
+
+# The light validation uses when a scene has none: a sun where a new SH sun starts, Hanning-windowed, over a sky.
+# Its reconstruction is nowhere negative at any order (minimum 0.25 at order 4, 0.21 at order 10), so Cycles is
+# lit by exactly the light PRT uses.
+DEFAULT_SUN = {"theta": math.radians(35.0), "phi": math.radians(-60.0), "angular_radius": 0.2, "irradiance": 2.0}
+DEFAULT_SKY = 0.3
+DEFAULT_LIGHT = ("a Hanning-windowed sun (θ 35°, φ -60°, radius 0.2 rad, irradiance 2) over a sky of "
+                 "radiance 0.3")
 
 
 @dataclass(frozen=True)
@@ -120,3 +129,11 @@ def _windowed(coeffs, order, window):
     if window == "none":
         return coeffs
     return lobes.apply_window(coeffs, lobes.window(order, window))
+
+
+def default_light(order: int) -> np.ndarray:
+    """DEFAULT_LIGHT as grey (3, order²) coefficients."""
+    direction = shading.direction_from_angles(DEFAULT_SUN["theta"], DEFAULT_SUN["phi"])
+    sun = shading.sun_coefficients(order, direction, DEFAULT_SUN["angular_radius"], DEFAULT_SUN["irradiance"])
+    grey = lobes.constant_sky(order, DEFAULT_SKY) + lobes.apply_window(sun, lobes.window(order, "hanning"))
+    return np.tile(grey, (3, 1))

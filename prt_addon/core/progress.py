@@ -1,4 +1,11 @@
-"""Progress with time left, shared by the panel, the status bar and background logs."""
+"""Long operations: progress with time left, and the one protocol every job follows.
+
+A job (a bake, a validation, a study) works in bounded steps: `step(budget_s)` works for about that long and says
+whether it is done, `progress` has the fraction and the time left, `cancel()` stops it, leaving nothing half
+written, and `outcome()` is what it produced. Two drivers run jobs: `Job.run` here (background and command line:
+a log line every 5 % of the work, as the original program refreshed its bar every 1 %) and the interface's modal
+operator (a progress bar, the status bar, Esc cancels).
+"""
 
 import time
 
@@ -16,7 +23,7 @@ def format_duration(seconds: float) -> str:
 
 
 class Progress:
-    """Fraction done and time left, estimated from the elapsed time (as the seed's progress bar did)."""
+    """Fraction done and time left, estimated from the elapsed time (as the original program's progress bar did)."""
 
     def __init__(self, label: str, clock=time.perf_counter):
         self.label = label
@@ -40,7 +47,7 @@ class Progress:
 
 
 class LogThrottle:
-    """Says when a background log line is due: every `step` of the work (the seed refreshed every 1 %)."""
+    """Says when a background log line is due: every `step` of the work (the original program refreshed every 1 %)."""
 
     def __init__(self, step: float = 0.05):
         self.step = step
@@ -51,3 +58,29 @@ class LogThrottle:
             self.next_mark = (int(fraction / self.step) + 1) * self.step
             return True
         return False
+
+
+class Job:
+    """Base of every long operation; subclasses define step(), progress and outcome(), and cancel() if they hold
+    anything to release."""
+    progress: Progress
+
+    def step(self, budget_s: float) -> bool:
+        raise NotImplementedError
+
+    def cancel(self):
+        pass
+
+    def outcome(self):
+        return None
+
+    def run(self, log=None, budget_s: float = 0.5, every: float = 0.05):
+        """Steps to the end, with `log(line)` of the progress and time left every `every` of the work and at the
+        end; returns the outcome."""
+        throttle = LogThrottle(every)
+        while not self.step(budget_s):
+            if log and throttle.due(self.progress.fraction):
+                log(self.progress.line())
+        if log:
+            log(self.progress.line())
+        return self.outcome()

@@ -8,7 +8,7 @@ from . import lobes, rotation
 
 
 def direction_from_angles(theta: float, phi: float) -> tuple[float, float, float]:
-    """θ from +Z (the zenith), φ from +X towards +Y, as the seed program's light controls.
+    """θ from +Z (the zenith), φ from +X towards +Y, as the original program's light controls.
 
     A tuple from scalar maths: the handler calls this for every sun on every update, and lights hash it."""
     sin_theta = math.sin(theta)

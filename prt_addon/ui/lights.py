@@ -1,4 +1,5 @@
-"""SH lights and display switches, stored in the scene; the light-driver panel in the sidebar tab "PRT".
+"""SH lights and display switches, stored in the scene; the light-driver panel in the sidebar tab "PRT". What the
+settings mean as light is blender.lights'.
 
 Every property is animatable and drivable. Each one has an update callback: Blender then tags the scene when it
 is set from Python too (not only from the UI), so the depsgraph handler sees the change.
@@ -7,12 +8,10 @@ is set from Python too (not only from the UI), so the depsgraph handler sees the
 import math
 
 import bpy
-import numpy as np
 from bpy.props import (BoolProperty, CollectionProperty, EnumProperty, FloatProperty, FloatVectorProperty,
                        IntProperty, PointerProperty)
-from mathutils import Vector
 
-from ..core import lights, shading
+from ..blender.lights import environment_image
 from .panels import SidebarPanel
 from .registration import classes_and_properties
 
@@ -61,66 +60,6 @@ class PRT_PG_light(bpy.types.PropertyGroup):
                            description="Equirectangular image; empty: the World's Environment Texture")
     rotation: FloatVectorProperty(name="Rotation", subtype="EULER", size=3, update=_tag_scene,
                                   description="Turns the environment: what was along d comes from R·d")
-
-    def rgb(self) -> tuple:
-        strength = self.strength
-        return tuple(strength * c for c in self.colour)
-
-    def sun_direction(self) -> tuple:
-        """Towards the sun in world space: the linked object's local +Z (a Sun shines along −Z), else θ, φ."""
-        if self.sun_object is not None:
-            return tuple(self.sun_object.matrix_world.to_quaternion() @ Vector((0.0, 0.0, 1.0)))
-        return shading.direction_from_angles(self.theta, self.phi)
-
-    def sun_angular_radius(self) -> float:
-        if self.sun_object is not None:
-            return self.sun_object.data.angle / 2
-        return self.angular_radius
-
-    def environment_image(self, scene):
-        """The chosen image, else the World's Environment Texture; None when there is neither or it is empty."""
-        image = self.image or _world_environment_image(scene.world)
-        if image is None or 0 in image.size:
-            return None
-        return image.original
-
-    def to_light(self, scene):
-        """The core's light for these settings, or None when it cannot shine (disabled, no image)."""
-        if not self.use:
-            return None
-        if self.kind == "SUN":
-            return lights.Sun(self.sun_direction(), self.sun_angular_radius(), self.rgb())
-        if self.kind == "SKY":
-            return lights.Sky(self.rgb())
-        image = self.environment_image(scene)
-        if image is None:
-            return None
-        matrix = np.array(self.rotation.to_matrix(), dtype=np.float64)
-        return lights.Environment((image.name_full, *image.size), tuple(matrix.ravel()), self.rgb(),
-                                  pixels=lambda: _equirect_pixels(image))
-
-
-def scene_lights(scene) -> list:
-    """The scene's enabled SH lights that can shine, as the core's lights: what the display sums."""
-    return [light for light in (entry.to_light(scene) for entry in scene.prt_lights) if light]
-
-
-def _world_environment_image(world):
-    if world is None or world.node_tree is None:
-        return None
-    for node in world.node_tree.nodes:
-        if node.type == "TEX_ENVIRONMENT" and node.image is not None:
-            return node.image
-    return None
-
-
-def _equirect_pixels(image) -> np.ndarray:
-    """(H, W, 3) float32, row 0 at the bottom (Blender's layout, as the core expects)."""
-    width, height = image.size
-    flat = np.empty(width * height * image.channels, dtype=np.float32)
-    image.pixels.foreach_get(flat)
-    pixels = flat.reshape(height, width, image.channels)
-    return pixels[..., :3] if image.channels >= 3 else np.repeat(pixels[..., :1], 3, axis=2)
 
 
 class PRT_PG_display(bpy.types.PropertyGroup):
@@ -183,7 +122,7 @@ class PRT_OT_light_remove(bpy.types.Operator):
 
 
 class PRT_PT_lights(SidebarPanel, bpy.types.Panel):
-    """The seed's light driver: a list of lights (its keys 1-8), the active one's θ and φ and settings."""
+    """The original program's light driver: a list of lights (its keys 1-8), the active one's θ and φ and settings."""
     bl_label = "Lights"
     bl_idname = "PRT_PT_lights"
 
@@ -213,7 +152,7 @@ class PRT_PT_lights(SidebarPanel, bpy.types.Panel):
             column.prop(light, "angular_radius")
         elif light.kind == "ENVIRONMENT":
             layout.template_ID(light, "image", open="image.open")
-            if light.environment_image(scene) is None:
+            if environment_image(light, scene) is None:
                 layout.label(text="No usable image: pick one, or give the World an Environment Texture",
                              icon="ERROR")
             layout.prop(light, "rotation")
@@ -222,7 +161,7 @@ class PRT_PT_lights(SidebarPanel, bpy.types.Panel):
 
 
 class PRT_PT_display(SidebarPanel, bpy.types.Panel):
-    """The seed's F1/F2 (own materials or PRT), T (albedo texture), N and L (normals, light directions)."""
+    """The original program's F1/F2 (own materials or PRT), T (albedo texture), N and L (normals, light directions)."""
     bl_label = "Display"
     bl_idname = "PRT_PT_display"
     bl_parent_id = "PRT_PT_lights"

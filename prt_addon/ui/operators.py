@@ -1,9 +1,11 @@
-"""Operators: the bake (modal in the UI, synchronous in background mode) and clearing a bake; the modal runner
-the validation shares."""
+"""Operators: the bake (modal in the UI, synchronous in background mode) and clearing a bake; the modal driver of
+jobs (core.progress.Job) that the validation shares."""
 
 import bpy
 
-from .. import baking, mesh_data
+from ..blender import geometry, storage
+from ..blender.scene_bake import SceneBake
+from ..core.errors import InputError
 from ..core.progress import format_duration
 
 
@@ -14,11 +16,11 @@ def _report_outcome(operator, scene_bake):
 
 
 class ModalJob:
-    """An operator that runs a job (anything with step(budget_s) -> done, progress and cancel()) from timer
-    events: a progress bar in the panel, the window manager's progress, time left in the status bar, Esc cancels.
-    Subclasses make the job (make_job, which may raise InputError) and take its outcome (finish); in background
-    mode, where timers never fire, invoke runs execute: the same job run synchronously with log lines."""
-    status_property = ""  # the WindowManager property, a PRT_PG_bake_status, that the panel reads
+    """An operator that drives a job (core.progress.Job) from timer events: a progress bar in the panel, the
+    window manager's progress, time left in the status bar, Esc cancels. Subclasses make the job (make_job, which
+    may raise InputError) and take its outcome (finish); in background mode, where timers never fire, invoke runs
+    execute: the same job run by Job.run with log lines."""
+    status_property = ""  # the WindowManager property, a PRT_PG_job_status, that the panel reads
     label = ""            # what the status bar calls the job
     kept = ""             # what a cancelled or failed job leaves
 
@@ -28,7 +30,7 @@ class ModalJob:
     def start(self, context):
         try:
             return self.make_job(context)
-        except mesh_data.InputError as problem:
+        except InputError as problem:
             self.report({"ERROR"}, str(problem))
             return None
 
@@ -37,11 +39,11 @@ class ModalJob:
         if job is None:
             return {"CANCELLED"}
         try:
-            job.run(log=print)
+            outcome = job.run(log=print)
         except Exception as failure:  # nothing was written, or the scene was put back on the way out
             self.report({"ERROR"}, f"{self.label} failed, {self.kept}: {failure}")
             return {"CANCELLED"}
-        self.finish(context, job)
+        self.finish(context, job, outcome)
         return {"FINISHED"}
 
     def invoke(self, context, event):
@@ -85,7 +87,12 @@ class ModalJob:
         if not done:
             return {"RUNNING_MODAL"}
         self._end(context)
-        self.finish(context, self._job)
+        try:
+            outcome = self._job.outcome()
+        except Exception as failure:
+            self.report({"ERROR"}, f"{self.label} failed, {self.kept}: {failure}")
+            return {"CANCELLED"}
+        self.finish(context, self._job, outcome)
         return {"FINISHED"}
 
     def _end(self, context):
@@ -114,13 +121,11 @@ class PRT_OT_bake(ModalJob, bpy.types.Operator):
 
     def make_job(self, context):
         settings = context.scene.prt_bake
-        return baking.SceneBake(context, settings.to_settings(), workers=settings.workers)
+        return SceneBake(context, settings.to_settings(), workers=settings.workers)
 
-    def finish(self, context, scene_bake):
-        if scene_bake.summary is None:  # the modal path stops stepping when done; run() has stored already
-            scene_bake.store()
+    def finish(self, context, scene_bake, summary):
         _report_outcome(self, scene_bake)
-        print(scene_bake.summary.line())
+        print(summary.line())
 
 
 class PRT_OT_clear(bpy.types.Operator):
@@ -138,11 +143,11 @@ class PRT_OT_clear(bpy.types.Operator):
             if ob.type != "MESH":
                 continue
             try:
-                mesh_data.check_writable(ob)
-            except mesh_data.InputError as problem:
+                geometry.check_writable(ob)
+            except InputError as problem:
                 self.report({"WARNING"}, str(problem))
                 continue
-            mesh_data.remove_transfer(ob.data)
+            storage.remove_transfer(ob.data)
         return {"FINISHED"}
 
 

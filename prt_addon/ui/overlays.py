@@ -1,4 +1,4 @@
-"""Viewport overlays, the seed's N and L: vertex normals of baked meshes and a line towards each sun.
+"""Viewport overlays, the original program's N and L: vertex normals of baked meshes and a line towards each sun.
 
 A SpaceView3D draw handler draws them with the gpu module. It is added only when Blender has a display: in
 background mode the overlays are simply absent. The line geometry is plain numpy, so it is testable anywhere.
@@ -9,7 +9,7 @@ import math
 import bpy
 import numpy as np
 
-from .. import mesh_data
+from ..blender import geometry, lights, storage
 
 MAX_NORMALS_PER_OBJECT = 20_000  # beyond this every k-th vertex: the overlay stays interactive on big meshes
 NORMAL_LENGTH = 0.03  # of the object's bounding-box diagonal
@@ -23,16 +23,10 @@ _normals = {}  # object name → (matrix and vertex count, segments): meshes do 
 def normal_segments(ob) -> np.ndarray:
     """(2k, 3) float32 world-space line ends: each drawn vertex, then that vertex plus its scaled normal."""
     mesh = ob.data
-    count = len(mesh.vertices)
-    positions = np.empty(count * 3, dtype=np.float32)
-    mesh.vertices.foreach_get("co", positions)
-    normals = np.empty(count * 3, dtype=np.float32)
-    mesh.vertex_normals.foreach_get("vector", normals)
-    step = math.ceil(count / MAX_NORMALS_PER_OBJECT)
+    step = math.ceil(len(mesh.vertices) / MAX_NORMALS_PER_OBJECT)
     matrix = np.array(ob.matrix_world, dtype=np.float64)
-    starts = positions.reshape(-1, 3)[::step] @ matrix[:3, :3].T + matrix[:3, 3]
-    directions = normals.reshape(-1, 3)[::step] @ np.linalg.inv(matrix[:3, :3])  # the inverse transpose
-    directions /= np.maximum(np.linalg.norm(directions, axis=1, keepdims=True), 1e-30)
+    starts = geometry.points_to_world(matrix, geometry.mesh_positions(mesh)[::step])
+    directions = geometry.directions_to_world(matrix, geometry.mesh_vertex_normals(mesh)[::step])
     length = NORMAL_LENGTH * np.linalg.norm(np.ptp(starts, axis=0)) if len(starts) else 0.0
     return np.stack([starts, starts + length * directions], axis=1).reshape(-1, 3).astype(np.float32)
 
@@ -44,7 +38,7 @@ def light_segments(scene, origin) -> tuple[np.ndarray, np.ndarray]:
     colours = np.ones((2 * len(suns), 4), dtype=np.float32)
     for i, light in enumerate(suns):
         positions[2 * i] = origin
-        positions[2 * i + 1] = np.asarray(origin) + LIGHT_LINE_LENGTH * np.asarray(light.sun_direction())
+        positions[2 * i + 1] = np.asarray(origin) + LIGHT_LINE_LENGTH * np.asarray(lights.sun_direction(light))
         colours[2 * i: 2 * i + 2, :3] = light.colour
     return positions, colours
 
@@ -66,7 +60,7 @@ def _draw():
     positions, colours = [], []
     if settings.show_normals:
         for ob in context.visible_objects:
-            if ob.type == "MESH" and mesh_data.METADATA_KEY in ob.data:
+            if ob.type == "MESH" and storage.METADATA_KEY in ob.data:
                 segments = _cached_normal_segments(ob)
                 positions.append(segments)
                 colours.append(np.tile(np.float32(NORMAL_COLOUR), (len(segments), 1)))

@@ -2,7 +2,7 @@
 
 import bpy
 
-from .. import mesh_data
+from ..blender import storage
 
 
 class SidebarPanel:
@@ -59,10 +59,10 @@ class PRT_PT_bake_info(SidebarPanel, bpy.types.Panel):
     def draw(self, context):
         layout = self.layout
         mesh = context.active_object.data
-        if mesh_data.METADATA_KEY not in mesh:
+        if storage.METADATA_KEY not in mesh:
             layout.label(text="Not baked", icon="INFO")
             return
-        meta = mesh[mesh_data.METADATA_KEY]
+        meta = mesh[storage.METADATA_KEY]
         if meta.get("vertex_count") != len(mesh.vertices):
             layout.label(text="Stale: the mesh changed since the bake", icon="ERROR")
         column = layout.column(align=True)

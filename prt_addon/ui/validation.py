@@ -4,19 +4,19 @@ background mode) and a panel showing the last result."""
 import bpy
 from bpy.props import CollectionProperty, FloatProperty, IntProperty, PointerProperty, StringProperty
 
-from .. import validate
+from ..blender.validation import DEFAULT_PASSES, DEFAULT_SAMPLES, Validation
 from .operators import ModalJob
 from .panels import SidebarPanel
+from .properties import PRT_PG_job_status
 from .registration import classes_and_properties
-from .properties import PRT_PG_bake_status
 
 
 class PRT_PG_validate_settings(bpy.types.PropertyGroup):
     samples: IntProperty(name="Cycles Samples", description="Cycles samples per pass",
-                         default=validate.DEFAULT_SAMPLES, min=1, soft_max=4096)
+                         default=DEFAULT_SAMPLES, min=1, soft_max=4096)
     passes: IntProperty(name="Passes", description="Cycles passes with different seeds: their spread measures "
                         "Cycles' own noise, which is taken out of the comparison",
-                        default=validate.DEFAULT_PASSES, min=2, max=64)
+                        default=DEFAULT_PASSES, min=2, max=64)
 
 
 class PRT_PG_compared(bpy.types.PropertyGroup):
@@ -50,10 +50,9 @@ class PRT_OT_validate(ModalJob, bpy.types.Operator):
 
     def make_job(self, context):
         settings = context.scene.prt_validate
-        return validate.Validation(context, settings.samples, settings.passes)
+        return Validation(context, settings.samples, settings.passes)
 
-    def finish(self, context, validation):
-        comparisons = validation.comparisons()
+    def finish(self, context, validation, comparisons):
         store_result(context.window_manager.prt_validation, validation, comparisons)
         for sentence in validation.problems + validation.notes:
             self.report({"WARNING"}, sentence)
@@ -114,6 +113,6 @@ classes = (PRT_PG_validate_settings, PRT_PG_compared, PRT_PG_validation_result, 
 
 register, unregister = classes_and_properties(classes, [
     (bpy.types.Scene, "prt_validate", PointerProperty(type=PRT_PG_validate_settings)),
-    (bpy.types.WindowManager, "prt_validate_status", PointerProperty(type=PRT_PG_bake_status)),
+    (bpy.types.WindowManager, "prt_validate_status", PointerProperty(type=PRT_PG_job_status)),
     (bpy.types.WindowManager, "prt_validation", PointerProperty(type=PRT_PG_validation_result)),
 ])

@@ -1,15 +1,19 @@
-"""One bake of a Blender scene, shared by the operator (modal or not) and the command line.
+"""One bake of a Blender scene, shared by the operator (modal or not) and the command line, and its report.
 
 Nothing is written until every receiver is baked: a cancelled or failed bake leaves the previous data as it was.
 """
 
+from dataclasses import asdict, dataclass, field
 import sys
 
 import bpy
 import numpy as np
 
-from . import mesh_data
-from .core import bake, job, subsurface
+from ..core import bake, job, subsurface, workers
+from ..core.errors import InputError
+from ..core.progress import Job
+from . import geometry, materials, storage
+from .occluders import occluders_from_depsgraph
 
 
 def worker_launch():
@@ -19,7 +23,7 @@ def worker_launch():
     if bpy.app.binary_path:
         return [bpy.app.binary_path, "--background", "--factory-startup", "--python-expr"]
     if sys.platform.startswith("linux"):
-        return job.FORK
+        return workers.FORK
     return [sys.executable, "-c"]
 
 
@@ -42,57 +46,102 @@ def _albedo_channels(albedos):
     return [a[:, :1] if grey else a for a in albedos]
 
 
-class SceneBake:
-    """Gathers receivers and occluders, runs a TransferJob, then stores everything at once."""
+@dataclass
+class SolvedSurfaces:
+    """The surfaces whose transfer the bake solves, in the one order the job, its results and the occluders'
+    first vertices share: the receivers (stored on their objects), then the bouncers (visible meshes that only
+    reflect light onto the receivers, in interreflected bakes)."""
+    receivers: list
+    bouncers: list = field(default_factory=list)
+
+    @property
+    def all(self) -> list:
+        return self.receivers + self.bouncers
+
+
+@dataclass
+class BakeReport:
+    """What `--report` writes and the demo's report holds."""
+    objects: list
+    vertices: int
+    order: int
+    mode: str
+    samples: int
+    target_error: float
+    workers: int
+    rays: int
+    skipped_vertices: int
+    time_s: float
+    rays_per_s: float
+    est_rms_rel_error: float
+    est_max_rel_error: float
+    per_object: dict
+    problems: list
+    notes: list
+    phases_s: dict
+    bounces: int | None
+    bounce_relative_changes: list
+    bounce_tail: float
+    albedo_clamped: bool
+    subsurface_objects: list
+
+    def as_dict(self) -> dict:
+        return asdict(self)
+
+
+class SceneBake(Job):
+    """Gathers receivers and occluders, runs a TransferJob, then stores everything at once (its outcome)."""
 
     def __init__(self, context, settings: bake.BakeSettings, object_names=None, workers: int = 1):
         problems = settings.problems()
         if problems:
-            raise mesh_data.InputError("; ".join(problems))
+            raise InputError("; ".join(problems))
         self.settings = settings
         context.view_layer.update()  # objects linked by scripts join the view layer only on update
         self.problems: list[str] = []  # one sentence per object that will not be baked
         self.notes: list[str] = []     # baked, but the user should know
         depsgraph = context.evaluated_depsgraph_get()
-        candidates = mesh_data.receivers_from_selection(context, object_names)
+        candidates = geometry.receivers_from_selection(context, object_names)
         bouncing = settings.mode == "interreflected"
-        self.objects, surfaces, meshes = [], [], {}
+        self.objects, receivers, meshes = [], [], {}
         for ob in candidates:
             try:
                 if ob.type == "MESH" and ob.data.name in meshes:
-                    raise mesh_data.InputError(
+                    raise InputError(
                         f"{ob.name!r} shares its mesh with {meshes[ob.data.name]!r}, and the bake depends on "
                         f"where each object is; make it single-user (Object > Relations) to bake both")
-                surfaces.append(mesh_data.surface_from_object(ob, depsgraph, self.notes, albedo=bouncing))
+                receivers.append(geometry.surface_from_object(ob, depsgraph, self.notes, albedo=bouncing))
                 meshes[ob.data.name] = ob.name
                 self.objects.append(ob)
-            except mesh_data.InputError as problem:
+            except InputError as problem:
                 self.problems.append(str(problem))
-        if not surfaces:
-            raise mesh_data.InputError("nothing to bake: " + ("; ".join(self.problems) or "no mesh objects"))
-        if bouncing:  # every visible mesh reflects light onto the receivers, so its transfer is solved too
-            surfaces += self._bouncing_surfaces(context, depsgraph, {ob.name for ob in self.objects})
+        if not receivers:
+            raise InputError("nothing to bake: " + ("; ".join(self.problems) or "no mesh objects"))
+        # Every visible mesh reflects light onto the receivers in an interreflected bake, so its transfer is solved
+        # too.
+        bouncers = self._bouncing_surfaces(context, depsgraph, {ob.name for ob in self.objects}) if bouncing else []
+        self.surfaces = SolvedSurfaces(receivers, bouncers)
         occluders = None
         if settings.mode != "unshadowed":
-            occluders, sources = mesh_data.occluders_from_depsgraph(depsgraph, surfaces)
+            occluders, sources = occluders_from_depsgraph(depsgraph, self.surfaces.all)
             if sources <= {ob.name for ob in self.objects}:
                 self.notes.append("no visible mesh besides the receivers casts shadows; "
                                   "each receiver is shadowed by the receivers only")
-        self.surfaces = surfaces
-        self.receivers = [surface.receiver for surface in surfaces]
-        self.job = job.TransferJob(self.receivers, occluders, settings, workers, worker_launch(),
-                                   albedo=_albedo_channels([s.albedo for s in surfaces]) if bouncing else None)
+        solved = self.surfaces.all
+        self.job = job.TransferJob([surface.receiver for surface in solved], occluders, settings, workers,
+                                   worker_launch(),
+                                   albedo=_albedo_channels([s.albedo for s in solved]) if bouncing else None)
         self.summary = None
 
     def _bouncing_surfaces(self, context, depsgraph, receiver_names):
         found = []
-        for ob in mesh_data.visible_mesh_objects(context):
+        for ob in geometry.visible_mesh_objects(context):
             if ob.name in receiver_names:
                 continue
             try:
-                found.append(mesh_data.surface_from_object(ob, depsgraph, self.notes, for_storage=False,
-                                                           albedo=True))
-            except mesh_data.InputError as problem:
+                found.append(geometry.surface_from_object(ob, depsgraph, self.notes, for_storage=False,
+                                                          albedo=True))
+            except InputError as problem:
                 self.notes.append(f"{problem}; it casts shadows but reflects no light")
         return found
 
@@ -103,27 +152,20 @@ class SceneBake:
     def step(self, budget_s: float = 0.1) -> bool:
         return self.job.step(budget_s)
 
-    def run(self, log=print):
-        """Synchronous bake with a log line every 5 % (background mode, command line)."""
-        from .core.progress import LogThrottle
-        throttle = LogThrottle(0.05)
-        finished = False
-        while not finished:
-            finished = self.step(0.5)
-            if throttle.due(self.progress.fraction):
-                log(self.progress.line())
-        return self.store()
-
     def cancel(self):
         self.job.cancel()
 
+    def outcome(self) -> job.Summary:
+        """Stores the bake, once, and returns its summary."""
+        return self.summary or self.store()
+
     def store(self) -> job.Summary:
         """Writes every receiver's transfer (replacing older bakes) and returns the summary."""
-        results = self.job.results()[: len(self.objects)]  # the rest only reflected light onto these
+        results = self.job.results()[: len(self.surfaces.receivers)]  # bouncers are not stored
         self.summary = self.job.summary(results)
         self.subsurface_objects = []
-        for ob, surface, result in zip(self.objects, self.surfaces, results):
-            material = mesh_data.subsurface_material(ob) if self.settings.mode != "unshadowed" else None
+        for ob, surface, result in zip(self.objects, self.surfaces.receivers, results):
+            material = materials.subsurface_material(ob) if self.settings.mode != "unshadowed" else None
             if material is not None:
                 result.transfer = with_subsurface(surface, result.transfer, *material)
                 self.subsurface_objects.append(ob.name)
@@ -131,18 +173,16 @@ class SceneBake:
             extra = {"time_s": self.summary.time_s}
             if self.summary.bounces is not None:
                 extra["bounces"] = self.summary.bounces
-            mesh_data.write_transfer(ob, result, extra, self.settings)
+            storage.write_transfer(ob, result, extra, self.settings)
         return self.summary
 
-    def report_dict(self) -> dict:
+    def report(self) -> BakeReport:
         s = self.summary
-        return {
-            "objects": [ob.name for ob in self.objects], "vertices": s.vertices, "order": s.order,
-            "mode": s.mode, "samples": s.samples, "target_error": s.target_error, "workers": s.workers,
-            "rays": s.rays, "skipped_vertices": s.skipped_vertices, "time_s": s.time_s,
-            "rays_per_s": s.rays_per_s, "est_rms_rel_error": s.est_rms_rel_error,
-            "est_max_rel_error": s.est_max_rel_error, "per_object": s.per_object, "problems": self.problems, "notes": self.notes,
-            "phases_s": s.phases, "bounces": s.bounces, "bounce_relative_changes": s.bounce_changes,
-            "bounce_tail": s.bounce_tail, "albedo_clamped": s.albedo_clamped,
-            "subsurface_objects": self.subsurface_objects,
-        }
+        return BakeReport(
+            objects=[ob.name for ob in self.objects], vertices=s.vertices, order=s.order, mode=s.mode,
+            samples=s.samples, target_error=s.target_error, workers=s.workers, rays=s.rays,
+            skipped_vertices=s.skipped_vertices, time_s=s.time_s, rays_per_s=s.rays_per_s,
+            est_rms_rel_error=s.est_rms_rel_error, est_max_rel_error=s.est_max_rel_error, per_object=s.per_object,
+            problems=self.problems, notes=self.notes, phases_s=s.phases, bounces=s.bounces,
+            bounce_relative_changes=s.bounce_changes, bounce_tail=s.bounce_tail, albedo_clamped=s.albedo_clamped,
+            subsurface_objects=self.subsurface_objects)

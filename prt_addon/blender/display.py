@@ -11,13 +11,12 @@ object's `_prt_original_materials` property and put back when the display is swi
 import bpy
 import numpy as np
 
-from .core import shading
+from ..core import shading
+from . import materials
 
 DISPLAY_ATTRIBUTE = "prt_color"
-ORIGINALS_KEY = "_prt_original_materials"  # on an object: its materials' names while the display is shown
 DISPLAY_OF_KEY = "_prt_display_of"  # on a display material: the name of the material it stands for
 ALBEDO_MIX = "PRT Albedo"  # the Mix node whose factor is the albedo switch
-DEFAULT_ALBEDO = (0.8, 0.8, 0.8)  # what Blender renders a mesh without material with
 
 
 # -- colours ----------------------------------------------------------------------------------------------------
@@ -49,7 +48,7 @@ def _colour_attribute(mesh):
 
 # -- display materials ----------------------------------------------------------------------------------------
 def is_shown(ob) -> bool:
-    return ORIGINALS_KEY in ob
+    return materials.ORIGINALS_KEY in ob
 
 
 def show(ob):
@@ -57,7 +56,7 @@ def show(ob):
     if is_shown(ob):
         return
     originals = [slot.material for slot in ob.material_slots]
-    ob[ORIGINALS_KEY] = [material.name if material else "" for material in originals]
+    ob[materials.ORIGINALS_KEY] = [material.name if material else "" for material in originals]
     if not originals:
         ob.data.materials.append(display_material(None))
     for slot, original in zip(ob.material_slots, originals):
@@ -66,24 +65,17 @@ def show(ob):
 
 def restore(ob):
     """Puts ob's own materials back (removing the slot `show` added) and drops unused display materials."""
-    names = list(ob[ORIGINALS_KEY])
+    names = list(ob[materials.ORIGINALS_KEY])
     shown = {slot.material for slot in ob.material_slots}
     if names:
         for slot, name in zip(ob.material_slots, names):
             slot.material = bpy.data.materials.get(name) if name else None
     else:
         ob.data.materials.clear()
-    del ob[ORIGINALS_KEY]
+    del ob[materials.ORIGINALS_KEY]
     for material in shown:
         if material is not None and DISPLAY_OF_KEY in material and material.users == 0:
             bpy.data.materials.remove(material)
-
-
-def original_materials(ob) -> list:
-    """ob's own materials, also while display materials stand in for them."""
-    if is_shown(ob):
-        return [bpy.data.materials.get(name) if name else None for name in ob[ORIGINALS_KEY]]
-    return [slot.material for slot in ob.material_slots]
 
 
 def restore_all():
@@ -110,17 +102,8 @@ def display_material(original):
     return existing or _new_display_material(f"PRT {stands_for}" if original else "PRT Display", original)
 
 
-def new_node_material(name):
-    """A new material with an empty node tree, on Blender 4.2 and 5.x alike."""
-    material = bpy.data.materials.new(name)
-    if material.node_tree is None:  # before Blender 5.0 new materials have no node tree
-        material.use_nodes = True
-    material.node_tree.nodes.clear()
-    return material
-
-
 def _new_display_material(name, original):
-    material = new_node_material(name)
+    material = materials.new_node_material(name)
     material[DISPLAY_OF_KEY] = original.name if original else ""
     nodes, links = material.node_tree.nodes, material.node_tree.links
     colour = nodes.new("ShaderNodeVertexColor")
@@ -147,9 +130,10 @@ def _socket(sockets, identifier):
 
 
 def _connect_albedo(material, socket, original):
-    """Feeds `socket` with the original's albedo: its Base Color texture (through the same UV map) or value."""
-    texture, value = _albedo_of(original)
-    socket.default_value = (*value, 1.0)
+    """Feeds `socket` with the original's albedo (materials' rule): its Base Color texture, through the same UV
+    map, or its value."""
+    socket.default_value = (*materials.base_colour_value(original), 1.0)
+    texture = materials.base_colour_texture(original)
     if texture is None:
         return
     nodes, links = material.node_tree.nodes, material.node_tree.links
@@ -158,32 +142,9 @@ def _connect_albedo(material, socket, original):
     for setting in ("image", "interpolation", "projection", "extension"):
         setattr(image, setting, getattr(texture, setting))
     links.new(image.outputs["Color"], socket)
-    uv_map = _uv_map_feeding(texture)
+    uv_map = materials.texture_uv_map(texture)
     if uv_map:
         uv = nodes.new("ShaderNodeUVMap")
         uv.location = (-550, -250)
         uv.uv_map = uv_map
         links.new(uv.outputs["UV"], image.inputs["Vector"])
-
-
-def _albedo_of(material):
-    """(image texture node or None, Base Color value) of the shader feeding the material's output."""
-    if material is None:
-        return None, DEFAULT_ALBEDO
-    if material.node_tree is None:
-        return None, tuple(material.diffuse_color[:3])
-    output = material.node_tree.get_output_node("ALL")
-    surface = output.inputs["Surface"].links if output else ()
-    shader = surface[0].from_node if surface else None
-    base = shader and (shader.inputs.get("Base Color") or shader.inputs.get("Color"))
-    if base is None:
-        return None, tuple(material.diffuse_color[:3])
-    source = base.links[0].from_node if base.links else None
-    texture = source if source is not None and source.type == "TEX_IMAGE" and source.image else None
-    return texture, tuple(base.default_value[:3])
-
-
-def _uv_map_feeding(texture) -> str:
-    """The UV map named by a UV Map node on the texture's Vector input; "" means the active one."""
-    links = texture.inputs["Vector"].links
-    return links[0].from_node.uv_map if links and links[0].from_node.type == "UVMAP" else ""

@@ -8,7 +8,7 @@ import bmesh
 import bpy
 import numpy as np
 
-from .display import new_node_material
+from .materials import new_node_material
 
 UV_MAP = "UVMap"
 ALBEDO_NAME = "Albedo"

@@ -1,0 +1,150 @@
+"""Mesh objects as the bake sees them: which objects, whether they can be written, and their evaluated surface
+(world-space positions, normals, triangles) as numpy arrays. The one object-to-world rule lives here."""
+
+from dataclasses import dataclass
+
+import bpy
+import numpy as np
+
+from ..core import bake
+from ..core.errors import InputError
+from . import materials
+
+
+# -- arrays and transforms ------------------------------------------------------------------------------------
+def mesh_positions(mesh) -> np.ndarray:
+    positions = np.empty(len(mesh.vertices) * 3, dtype=np.float64)
+    mesh.vertices.foreach_get("co", positions)
+    return positions.reshape(-1, 3)
+
+
+def mesh_vertex_normals(mesh) -> np.ndarray:
+    normals = np.empty(len(mesh.vertices) * 3, dtype=np.float64)
+    mesh.vertex_normals.foreach_get("vector", normals)
+    return normals.reshape(-1, 3)
+
+
+def mesh_triangles(mesh) -> np.ndarray:
+    mesh.calc_loop_triangles()
+    triangles = np.empty(len(mesh.loop_triangles) * 3, dtype=np.int32)
+    mesh.loop_triangles.foreach_get("vertices", triangles)
+    return triangles.reshape(-1, 3)
+
+
+def points_to_world(matrix, points: np.ndarray) -> np.ndarray:
+    """Object-space points (N, 3) through a 4 × 4 matrix_world."""
+    m = np.asarray(matrix, dtype=np.float64)
+    return points @ m[:3, :3].T + m[:3, 3]
+
+
+def directions_to_world(matrix, normals: np.ndarray) -> np.ndarray:
+    """Object-space normals (N, 3) to unit world-space normals through the inverse transpose of matrix_world;
+    zero rows stay zero."""
+    m = np.asarray(matrix, dtype=np.float64)
+    world = normals @ np.linalg.inv(m[:3, :3])
+    lengths = np.linalg.norm(world, axis=1, keepdims=True)
+    return np.where(lengths > 0, world / np.where(lengths > 0, lengths, 1.0), 0.0)
+
+
+# -- which objects --------------------------------------------------------------------------------------------
+def visible_mesh_objects(context):
+    return [ob for ob in context.view_layer.objects if ob.type == "MESH" and ob.visible_get()]
+
+
+def receivers_from_selection(context, names=None):
+    """Named objects, else the selected meshes, else every visible mesh."""
+    if names:
+        found, missing = [], []
+        for name in names:
+            ob = bpy.data.objects.get(name)
+            (found if ob is not None else missing).append(ob if ob is not None else name)
+        if missing:
+            raise InputError(f"no object named {', '.join(map(repr, missing))}")
+        return found
+    selected = [ob for ob in context.selected_objects if ob.type == "MESH"]
+    return selected or visible_mesh_objects(context)
+
+
+def check_writable(ob):
+    """Reasons the bake could not be stored on this object, raised before any work is done."""
+    if ob.type != "MESH":
+        raise InputError(f"{ob.name!r} is a {ob.type.lower()}, not a mesh")
+    if ob.data.library is not None or ob.library is not None:
+        raise InputError(f"{ob.name!r} uses linked library data, which cannot be written; make it local")
+    if ob.mode == "EDIT" or ob.data.is_editmode:
+        raise InputError(f"{ob.name!r} is in Edit Mode; switch to Object Mode to bake")
+
+
+# -- surfaces -------------------------------------------------------------------------------------------------
+@dataclass
+class Surface:
+    """A mesh object's evaluated surface in world space, as the bake sees it."""
+    receiver: bake.Receiver
+    triangles: np.ndarray        # (T, 3) indices into the receiver's vertices
+    albedo: np.ndarray | None    # (V, 3) linear base colour per vertex, when asked for
+
+
+def surface_from_object(ob, depsgraph, notes: list, for_storage: bool = True, albedo: bool = False) -> Surface:
+    """World-space positions and normals of the evaluated mesh, validated vertex by vertex.
+
+    for_storage: the result will be written to this object's mesh, so it must be writable and keep its
+    vertex count through its modifiers. Vertices without a surface (loose, or only on zero-area faces) get zero
+    transfer and a note in `notes`."""
+    mesh = ob.data
+    if for_storage:
+        check_writable(ob)
+    if len(mesh.polygons) == 0:
+        raise InputError(f"{ob.name!r} has no faces, so it has no surface to bake")
+    evaluated = ob.evaluated_get(depsgraph)
+    eval_mesh = evaluated.to_mesh()
+    try:
+        if for_storage and len(eval_mesh.vertices) != len(mesh.vertices):
+            raise InputError(
+                f"{ob.name!r}: its modifiers change the vertex count ({len(mesh.vertices)} → "
+                f"{len(eval_mesh.vertices)}); apply them or disable them in the viewport to bake")
+        positions = mesh_positions(eval_mesh)
+        if not np.isfinite(positions).all():
+            bad = int((~np.isfinite(positions).all(1)).sum())
+            raise InputError(f"{ob.name!r} has {bad} vertices with non-finite (NaN or infinite) coordinates")
+        normals = mesh_vertex_normals(eval_mesh)
+        triangles = mesh_triangles(eval_mesh)
+        used = np.zeros(len(positions), dtype=bool)
+        used[_face_vertices_with_area(triangles, positions)] = True
+        towards_faces = _towards_faces(triangles, positions)
+        colours = materials.vertex_albedo(ob, eval_mesh, notes) if albedo else None
+    finally:
+        evaluated.to_mesh_clear()
+    matrix = np.array(ob.matrix_world, dtype=np.float64)
+    world_positions = points_to_world(matrix, positions)
+    world_normals = directions_to_world(matrix, normals)
+    usable = used & (np.linalg.norm(world_normals, axis=1) > 0)
+    world_normals[~usable] = 0.0
+    inward = towards_faces @ matrix[:3, :3].T
+    inward -= np.einsum("ij,ij->i", inward, world_normals)[:, None] * world_normals  # tangent only
+    length = np.linalg.norm(inward, axis=1, keepdims=True)
+    inward = np.where(length > 1e-12 * np.linalg.norm(np.ptp(world_positions, axis=0)),
+                      inward / np.where(length > 0, length, 1.0), 0.0)
+    if not usable.all():
+        notes.append(f"{ob.name!r}: {int((~usable).sum())} vertices are loose or only on zero-area faces; "
+                     f"they get zero transfer")
+    receiver = bake.Receiver(ob.name, world_positions, world_normals, bake.Receiver.key_for(ob.name), inward)
+    return Surface(receiver, triangles, colours)
+
+
+def _towards_faces(triangles: np.ndarray, positions: np.ndarray) -> np.ndarray:
+    """Per vertex: mean of its triangles' centroids minus the vertex (object space, not normalised)."""
+    centroids = positions[triangles].mean(axis=1)
+    total = np.zeros_like(positions)
+    for corner in range(3):
+        np.add.at(total, triangles[:, corner], centroids)
+    count = np.bincount(triangles.ravel(), minlength=len(positions))[:, None]
+    return np.where(count > 0, total / np.maximum(count, 1) - positions, 0.0)
+
+
+def _face_vertices_with_area(triangles, positions) -> np.ndarray:
+    """Vertices of triangles with non-zero area: the others (loose or degenerate) have no normal."""
+    if len(triangles) == 0:
+        return np.zeros(0, dtype=np.int32)
+    a, b, c = (positions[triangles[:, i]] for i in range(3))
+    area = np.linalg.norm(np.cross(b - a, c - a), axis=1)
+    return np.unique(triangles[area > 0])

@@ -1,0 +1,130 @@
+"""The relighting engine: keeps each baked mesh's PRT colours and the display materials current with the scene's
+SH lights and display switches.
+
+One `Relighter` holds what makes a refresh cheap: the lights' projections (a light that did not move comes from
+the cache), each mesh's transfer read once per bake, and which light each mesh's colours were written for (a mesh
+is shaded again only when its light or its bake changed). The interface's handlers own one and call it; a command
+may use its own. Its own writes change nothing it watches, and a refresh never starts another.
+"""
+
+import math
+
+import bpy
+
+from ..core import lights as core_lights
+from ..core.errors import StaleBake
+from . import display, storage
+from .lights import environment_image, scene_lights
+
+
+class Relighter:
+    def __init__(self):
+        self.forget()
+        self.busy = False  # re-entrancy guard: nothing a refresh does may start another one
+
+    def forget(self):
+        """Caches are by name: a newly loaded file starts afresh."""
+        self._light_cache = core_lights.LightCache()
+        self._transfers = {}  # mesh name → (bake key, (V, n²) float32 transfer, None for a stale bake)
+        self._shaded = {}     # mesh name → (bake key, light bytes) of the colours it holds
+        self._reported = set()  # messages already printed
+
+    def refresh(self, scene, depsgraph):
+        """Brings colours and display materials up to date with the scene's SH lights and switches.
+
+        Settings are read from the evaluated scene, so animated and driven values are those of the depsgraph's
+        frame, also while rendering; the original meshes and objects are written."""
+        if self.busy:
+            return
+        self.busy = True
+        try:
+            settings = depsgraph.scene_eval
+            in_use = settings.prt_lights or settings.prt_display.show_prt  # else nothing is read or written
+            receivers = list(self._receivers(scene)) if in_use else []
+            if settings.prt_lights:
+                self._shade(receivers, settings)
+            _sync_display(scene, receivers, settings.prt_display)
+        finally:
+            self.busy = False
+
+    def light_relevant(self, scene, depsgraph) -> bool:
+        """Whether a depsgraph update may change what is shown: the scene (lights, switches), a World, a followed
+        Sun's object or light data, or a mesh whose bake changed since it was read."""
+        linked = {entry.sun_object for entry in scene.prt_lights if entry.sun_object is not None}
+        followed = {ob.name_full for ob in linked} | {ob.data.name_full for ob in linked}
+        for update in depsgraph.updates:
+            datablock = update.id.original
+            kind = datablock.id_type
+            if kind in {"SCENE", "WORLD"} or datablock.name_full in followed and kind in {"OBJECT", "LIGHT"}:
+                return True
+            mesh = datablock if kind == "MESH" else datablock.data if kind == "OBJECT" else None
+            if isinstance(mesh, bpy.types.Mesh) and self._bake_changed(mesh):
+                return True
+        return False
+
+    def _bake_changed(self, mesh) -> bool:
+        return self._transfers.get(mesh.name_full, (None,))[0] != _bake_key(mesh)
+
+    def _receivers(self, scene):
+        """(object, transfer) for each mesh object of the scene with a usable bake."""
+        for ob in scene.objects:
+            if ob.type == "MESH" and not ob.data.is_editmode:
+                transfer = self._transfer(ob.data)
+                if transfer is not None:
+                    yield ob, transfer
+
+    def _transfer(self, mesh):
+        """The mesh's transfer, read once per bake; a stale bake is reported once and never applied."""
+        key = _bake_key(mesh)
+        if key is None:
+            self._transfers.pop(mesh.name_full, None)
+            return None
+        cached = self._transfers.get(mesh.name_full)
+        if cached is not None and cached[0] == key:
+            return cached[1]
+        try:
+            transfer, _ = storage.read_transfer(mesh)
+        except StaleBake as problem:
+            transfer = None
+            self._report_once(f"PRT: not relighting: {problem}")
+        self._transfers[mesh.name_full] = (key, transfer)
+        return transfer
+
+    def _report_once(self, message):
+        if message not in self._reported:
+            self._reported.add(message)
+            print(message)
+
+    def _shade(self, receivers, settings):
+        """Sums the lights once per SH order, then writes the colours of each mesh whose light or bake changed."""
+        orders = {math.isqrt(transfer.shape[-1]) for _, transfer in receivers}
+        for entry in settings.prt_lights:
+            if entry.use and entry.kind == "ENVIRONMENT" and environment_image(entry, settings) is None:
+                self._report_once(f"PRT: SH light {entry.name!r} has no readable image (missing file?); "
+                                  f"it does not shine")
+        totals = self._light_cache.totals(scene_lights(settings), orders, settings.prt_display.window)
+        for ob, transfer in receivers:
+            light = totals[math.isqrt(transfer.shape[-1])]
+            state = (_bake_key(ob.data), light.tobytes())
+            if self._shaded.get(ob.data.name_full) != state:
+                display.write_display_colours(ob.data, transfer, light)
+                self._shaded[ob.data.name_full] = state
+
+
+def _bake_key(mesh):
+    """What identifies a bake: its unique id, and the vertex counts then and now."""
+    meta = mesh.get(storage.METADATA_KEY)
+    if meta is None:
+        return None
+    return meta.get("bake_id"), meta.get("vertex_count"), len(mesh.vertices)
+
+
+def _sync_display(scene, receivers, settings):
+    """Display materials on the receivers while the PRT display is on; everything else shows its own."""
+    shown = {ob.name_full for ob, _ in receivers} if settings.show_prt else set()
+    for ob in scene.objects:
+        if ob.name_full in shown:
+            display.show(ob)
+        elif display.is_shown(ob) and ob.mode != "EDIT":  # an object being edited keeps what it shows
+            display.restore(ob)
+    display.set_albedo(settings.use_albedo)

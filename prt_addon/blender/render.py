@@ -1,0 +1,50 @@
+"""Rendering what the PRT display shows, from the scene's camera, to a PNG.
+
+EEVEE renders the display materials (PRT colour × albedo texture); Workbench renders the colour attribute alone.
+Both use the Standard view transform, so a pixel is the sRGB encoding of the radiance, not a tone-mapped look.
+"""
+
+import os
+import time
+
+import bpy
+
+from ..core.errors import InputError
+from .display import DISPLAY_ATTRIBUTE
+
+ENGINES = ("EEVEE", "WORKBENCH")
+
+
+def engine_id(engine: str) -> str:
+    """Blender's id: EEVEE is BLENDER_EEVEE_NEXT in 4.2-4.4 and BLENDER_EEVEE from 5.0 on."""
+    if engine == "WORKBENCH":
+        return "BLENDER_WORKBENCH"
+    ids = {item.identifier for item in bpy.types.RenderSettings.bl_rna.properties["engine"].enum_items}
+    return "BLENDER_EEVEE_NEXT" if "BLENDER_EEVEE_NEXT" in ids else "BLENDER_EEVEE"
+
+
+def render(scene, path, engine="EEVEE", samples=4, resolution=None) -> float:
+    """Renders the scene's camera view to a PNG; returns the seconds it took."""
+    if engine not in ENGINES:
+        raise InputError(f"unknown engine {engine!r}: expected one of {', '.join(ENGINES)}")
+    if scene.camera is None:
+        raise InputError("the scene has no camera to render from")
+    scene.render.engine = engine_id(engine)
+    if engine == "EEVEE":
+        scene.eevee.taa_render_samples = samples
+    else:  # the active colour attribute, made the PRT colour, as it is: unlit
+        scene.display.shading.light = "FLAT"
+        scene.display.shading.color_type = "VERTEX"
+        for mesh in bpy.data.meshes:
+            if DISPLAY_ATTRIBUTE in mesh.color_attributes:
+                mesh.color_attributes.active_color = mesh.color_attributes[DISPLAY_ATTRIBUTE]
+    scene.view_settings.view_transform = "Standard"
+    if resolution is not None:
+        scene.render.resolution_x, scene.render.resolution_y = resolution
+        scene.render.resolution_percentage = 100
+    scene.render.image_settings.file_format = "PNG"
+    scene.render.filepath = os.path.abspath(path)
+    os.makedirs(os.path.dirname(scene.render.filepath), exist_ok=True)
+    start = time.perf_counter()
+    bpy.ops.render.render(write_still=True)
+    return time.perf_counter() - start

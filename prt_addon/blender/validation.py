@@ -1,0 +1,182 @@
+"""Validation against Cycles: the baked receivers' PRT colours compared with Cycles (blender.cycles) under the same
+light, and the report.
+
+PRT with a light band-limited to the bake's order is exact up to Monte Carlo noise (∫ L̃·T = Σ L̃_k T_k), so
+Cycles lit by the SH-reconstructed environment must agree with it. The light is the scene's SH lights, summed and
+windowed as the display shows them (core.lights.default_light when there are none). Cycles' noise, measured from
+the spread of its passes, is taken out of the measured difference: the two noises are independent, so their
+squares add (core.statistics).
+"""
+
+from dataclasses import asdict, dataclass
+import time
+
+import numpy as np
+
+from ..core import lights, lobes, shading
+from ..core.errors import InputError
+from ..core.progress import Job
+from ..core.statistics import clamped_fraction, compare
+from . import geometry, materials, storage
+from .cycles import CyclesReference, LightGroup, rendered_meshes
+from .lights import scene_lights
+
+ENVIRONMENT_SIZE = (256, 512)  # rows, columns: order ≤ 10 is smooth at this resolution
+DEFAULT_SAMPLES = 64  # Cycles samples per pass
+DEFAULT_PASSES = 4
+CLAMPED_NOTE_ABOVE = 1e-4  # share of the light's magnitude; below it the clamp changes nothing measurable
+INTERREFLECTED_MODE = "interreflected"  # compared with Cycles' indirect diffuse light too
+
+
+def scene_light(context, orders) -> tuple[dict, bool]:
+    """({order: (3, order²)}, True): the scene's SH lights as the display sums them; ({...}, False): the default
+    light, when no SH light of the scene shines."""
+    scene = context.evaluated_depsgraph_get().scene_eval
+    found = scene_lights(scene)
+    if not found:
+        return {order: lights.default_light(order) for order in orders}, False
+    return lights.LightCache().totals(found, orders, scene.prt_display.window), True
+
+
+def prt_colours(transfer: np.ndarray, light: np.ndarray, albedo: np.ndarray) -> np.ndarray:
+    """ρ · max(Σ_k L_k T_k, 0), (V, 3) float64, for transfer (V, n²) or (V, 3, n²) and albedo ρ (V, 3)."""
+    return albedo * np.maximum(shading.shade(transfer, light).astype(np.float64), 0.0)
+
+
+@dataclass
+class ValidationReport:
+    """What `validate --report` writes."""
+    objects: list
+    vertices: int
+    rel_rms_error: float
+    measured_rel_rms: float
+    cycles_noise_rel_rms: float
+    rel_max_difference: float
+    cycles: dict
+    prt: dict
+    light: dict
+    per_object: dict
+    notes: list
+    problems: list
+
+    def as_dict(self) -> dict:
+        return asdict(self)
+
+
+class Validation(Job):
+    """The receivers' PRT colours against Cycles under the same light; shared by the operator and the command
+    line. Receivers are the named objects, else the selected meshes, else every visible mesh, that have a bake."""
+
+    def __init__(self, context, samples: int = DEFAULT_SAMPLES, passes: int = DEFAULT_PASSES, object_names=None):
+        if samples < 1:
+            raise InputError(f"Cycles samples must be at least 1, not {samples}")
+        if passes < 2:
+            raise InputError(f"passes must be at least 2 (Cycles' noise is measured from their spread), "
+                                       f"not {passes}")
+        context.view_layer.update()
+        self.problems: list[str] = []  # one sentence per object that is not validated
+        self.notes: list[str] = []     # validated, but the user should know
+        self.receivers = self._receivers(context, object_names)  # (object, bake metadata)
+        orders = sorted({meta["order"] for _, meta in self.receivers})
+        self.lights, self.scene_light = scene_light(context, orders)
+        if not self.scene_light:
+            self.notes.append(f"no SH lights in the scene: validating under the default light, {lights.DEFAULT_LIGHT}")
+        environments = {order: lobes.reconstruct_equirect(self.lights[order], *ENVIRONMENT_SIZE) for order in orders}
+        self.clamped = {order: clamped_fraction(pixels) for order, pixels in environments.items()}
+        for order, share in self.clamped.items():
+            if share > CLAMPED_NOTE_ABOVE:
+                self.notes.append(
+                    f"the order-{order} light rings: {100 * share:.2f} % of it is negative, which Cycles cannot "
+                    f"emit, so Cycles sees a clamped light and the two differ; a Window (Display panel) removes it")
+        receivers = [ob for ob, _ in self.receivers]
+        self.albedos = {ob: materials.vertex_albedo(ob, ob.data, self.notes)
+                        for ob in rendered_meshes(context, receivers)}
+        unshadowed = [ob.name for ob, meta in self.receivers if meta["mode"] == "unshadowed"]
+        if unshadowed:
+            self.notes.append(f"{', '.join(map(repr, unshadowed))}: unshadowed bakes, while Cycles casts shadows; "
+                              f"they agree only where nothing occludes")
+        groups = {}
+        for ob, meta in self.receivers:
+            key = (meta["order"], meta.get("bounces") if meta["mode"] == INTERREFLECTED_MODE else None)
+            groups.setdefault(key, LightGroup([], environments[key[0]], key[1])).objects.append(ob)
+        self.cycles = CyclesReference(context, list(groups.values()), self.albedos, samples, passes)
+        self.shade_time_s = 0.0
+
+    def _receivers(self, context, object_names):
+        found = []
+        for ob in geometry.receivers_from_selection(context, object_names):
+            try:
+                geometry.check_writable(ob)
+                _, meta = storage.read_transfer(ob.data)
+            except InputError as problem:
+                self.problems.append(str(problem))
+                continue
+            if ob.hide_render:
+                self.problems.append(f"{ob.name!r} is hidden from render, so Cycles cannot bake it")
+                continue
+            found.append((ob, meta))
+        if not found:
+            raise InputError("nothing to validate: " + ("; ".join(self.problems) or "no mesh objects"))
+        return found
+
+    @property
+    def progress(self):
+        return self.cycles.progress
+
+    def step(self, budget_s: float = 0.0) -> bool:
+        """One Cycles pass (a pass cannot be split, whatever the budget)."""
+        return self.cycles.step(budget_s)
+
+    def cancel(self):
+        self.cycles.cancel()
+
+    def outcome(self) -> list:
+        return self.comparisons()
+
+    def comparisons(self) -> list:
+        """Per receiver, and last all vertices together: its current PRT colours against Cycles' passes."""
+        start = time.perf_counter()
+        colours = []
+        for ob, meta in self.receivers:
+            transfer, _ = storage.read_transfer(ob.data)
+            colours.append(prt_colours(transfer, self.lights[meta["order"]], self.albedos[ob]))
+        self.shade_time_s = time.perf_counter() - start
+        passes = [np.stack(self.cycles.radiance[ob.name]) for ob, _ in self.receivers]
+        return ([compare(ob.name, prt, cycles) for (ob, _), prt, cycles in zip(self.receivers, colours, passes)]
+                + [compare("all", np.concatenate(colours), np.concatenate(passes, axis=1))])
+
+    def bake_time_s(self) -> float:
+        """Seconds of the bakes validated. Objects baked together store the same date and time, which tell one
+        bake from another (each mesh's bake_id is its own)."""
+        return sum({(meta["date"], meta.get("time_s", 0.0)): meta.get("time_s", 0.0)
+                    for _, meta in self.receivers}.values())
+
+    def lines(self, comparisons) -> list[str]:
+        """The summary line, then one line per object."""
+        overall = comparisons[-1]
+        light = "scene light" if self.scene_light else "default light"
+        summary = (f"PRT validate: {len(self.receivers)} objects, {overall.vertices} vertices vs Cycles "
+                   f"({self.cycles.passes} × {self.cycles.samples} samples): {overall.text()}; "
+                   f"PRT bake {self.bake_time_s():.1f} s, shading {1000 * self.shade_time_s:.0f} ms, "
+                   f"Cycles {self.cycles.time_s:.1f} s; {light}, {100 * max(self.clamped.values()):.2f} % clamped")
+        return [summary] + [f"  {c.name}: {c.text()}" for c in comparisons[:-1]]
+
+    def report(self, comparisons) -> ValidationReport:
+        metadata = {ob.name: meta for ob, meta in self.receivers}
+        overall = comparisons[-1].as_dict()
+        del overall["vertices"]
+        return ValidationReport(
+            objects=[ob.name for ob, _ in self.receivers], vertices=comparisons[-1].vertices, **overall,
+            cycles={"samples": self.cycles.samples, "passes": self.cycles.passes, "device": "CPU",
+                    "time_s": self.cycles.time_s},
+            prt={"bake_time_s": self.bake_time_s(), "shade_time_s": self.shade_time_s},
+            light={"source": "scene" if self.scene_light else "default",
+                   "description": None if self.scene_light else lights.DEFAULT_LIGHT,
+                   "clamped_fraction": {str(order): share for order, share in self.clamped.items()}},
+            per_object={c.name: {**c.as_dict(), **_bake_facts(metadata[c.name])} for c in comparisons[:-1]},
+            notes=self.notes, problems=self.problems)
+
+
+def _bake_facts(meta) -> dict:
+    return {"order": meta["order"], "mode": meta["mode"], "samples": meta["samples"],
+            "est_rms_rel_error": meta["est_rms_rel_error"], "bake_time_s": meta.get("time_s", 0.0)}

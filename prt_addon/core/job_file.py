@@ -1,0 +1,98 @@
+"""A worker's side of a bake and the files it shares with the baking process: the job file a spawned worker
+loads, the results file every worker leaves, the worker's chunk loop, and the command that starts a spawned
+worker on `worker_main`."""
+
+import json
+import os
+import sys
+
+import numpy as np
+
+from . import bake, interreflect
+
+
+def worker_process_command(python_prefix, job_file, out_file, chunk_indices):
+    """`python_prefix` runs a Python snippet with mathutils importable: [python, '-c'] with the bpy module,
+    [blender, '--background', '--factory-startup', '--python-expr'] in a real Blender."""
+    package_parent = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+    package = __name__.rsplit(".", 2)[0].rsplit(".", 1)[-1]
+    snippet = (
+        "import sys\n"
+        "try:\n    import bpy\nexcept ImportError:\n    pass\n"
+        f"sys.path.insert(0, {package_parent!r})\n"
+        f"from {package}.core import job_file\n"
+        f"job_file.worker_main({job_file!r}, {out_file!r}, {list(chunk_indices)!r})\n"
+    )
+    return [*python_prefix, snippet]
+
+
+def save_job(path, receivers, occluders, settings: bake.BakeSettings):
+    arrays = {"occluder_vertices": occluders.vertices, "occluder_triangles": occluders.triangles,
+              "occluder_hull": occluders.hull}
+    arrays.update({f"polygon_{index}": polygon for index, polygon in enumerate(occluders.polygons)})
+    for index, receiver in enumerate(receivers):
+        arrays[f"positions_{index}"] = receiver.positions
+        arrays[f"normals_{index}"] = receiver.normals
+        if receiver.inward is not None:
+            arrays[f"inward_{index}"] = receiver.inward
+    meta = {"settings": settings.__dict__, "receivers": [[r.name, r.key] for r in receivers],
+            "solved_vertices": occluders.solved_vertices}
+    np.savez(path, meta=np.array(json.dumps(meta)), **arrays)
+
+
+def load_job(path):
+    with np.load(path) as data:
+        meta = json.loads(str(data["meta"]))
+        flat = [data[f"polygon_{index}"] for index in range(sum(name.startswith("polygon_") for name in data.files))]
+        occluders = bake.Occluders(data["occluder_vertices"], data["occluder_triangles"], data["occluder_hull"], flat,
+                                   meta["solved_vertices"])
+        receivers = [bake.Receiver(name, data[f"positions_{i}"], data[f"normals_{i}"], key,
+                                   data[f"inward_{i}"] if f"inward_{i}" in data else None)
+                     for i, (name, key) in enumerate(meta["receivers"])]
+    return receivers, occluders, bake.BakeSettings(**meta["settings"])
+
+
+def load_results(path) -> list[tuple[int, bake.ChunkResult]]:
+    """(chunk index, result) for every chunk a worker baked."""
+    with np.load(path) as data:
+        return [(int(chunk_index), bake.ChunkResult(data[f"transfer_{i}"], data[f"std_error_{i}"], data[f"rays_{i}"],
+                                                     data[f"skipped_{i}"], _load_records(data, i)))
+                for i, chunk_index in enumerate(data["chunks"])]
+
+
+def _load_records(data, slot):
+    if f"records_vertex_{slot}" not in data:
+        return None
+    return interreflect.HitRecords(*(data[f"records_{name}_{slot}"]
+                                     for name in ("vertex", "triangle", "barycentric", "weight")))
+
+
+def bake_chunks(caster, receivers, settings, chunk_indices, out_file, stream):
+    """A worker's work: bakes the chunks it is given (a list, or a shared queue it takes them from) with a
+    progress line on `stream` after each, then saves the results and which chunks they are."""
+    chunks = bake.chunk_ranges([len(r.positions) for r in receivers])
+    arrays, done = {}, []
+    for slot, chunk_index in enumerate(chunk_indices):
+        receiver_index, start, stop = chunks[chunk_index]
+        work = bake.bake_chunk(caster, receivers[receiver_index], start, stop, settings)
+        rays = 0
+        while True:
+            try:
+                rays += next(work)
+            except StopIteration as finished:
+                result = finished.value
+                break
+        for name in ("transfer", "std_error", "rays", "skipped"):
+            arrays[f"{name}_{slot}"] = getattr(result, name)
+        if result.records is not None:
+            for name in ("vertex", "triangle", "barycentric", "weight"):
+                arrays[f"records_{name}_{slot}"] = getattr(result.records, name)
+        done.append(chunk_index)
+        print(f"PRT-PROGRESS {stop - start} {rays}", file=stream, flush=True)
+    np.savez(out_file, chunks=np.array(done, dtype=np.int64), **arrays)
+
+
+def worker_main(job_file, out_file, chunk_indices):
+    """Runs in a spawned worker process: loads the job, builds its own ray tree, bakes its chunks."""
+    receivers, occluders, settings = load_job(job_file)
+    bake_chunks(bake.RayCaster(occluders), receivers, settings, chunk_indices, out_file, sys.stdout)

@@ -1,0 +1,63 @@
+"""The bake's settings, defined once: name, label, description, default and range of each. The sidebar's
+properties, the command line's options and help text, `BakeSettings`' defaults and its range checks all read them
+from here, so they cannot disagree."""
+
+from dataclasses import dataclass
+
+MAX_ORDER = 10
+FEWEST_SAMPLES = 8
+MOST_SAMPLES = 1 << 20
+MAX_WORKERS = 64
+
+
+@dataclass(frozen=True)
+class Setting:
+    name: str             # BakeSettings field and property name; the command-line option is --name-with-dashes
+    label: str
+    description: str
+    default: object
+    minimum: float | None = None
+    maximum: float | None = None
+    choices: tuple = ()   # (identifier, label, description) for a choice of one
+    auto: bool = False    # also takes "auto" (None in BakeSettings, the default); `default` is the manual value
+
+    def range_text(self) -> str:
+        if self.choices:
+            return "one of " + ", ".join(identifier for identifier, _, _ in self.choices)
+        low, high = (f"{limit:g}" if isinstance(limit, float) else str(limit) for limit in (self.minimum, self.maximum))
+        return f"{low}-{high}" if self.maximum is not None else f"at least {low}"
+
+    def contains(self, value) -> bool:
+        if self.auto and value is None:
+            return True
+        if self.choices:
+            return value in {identifier for identifier, _, _ in self.choices}
+        return ((self.minimum is None or value >= self.minimum) and (self.maximum is None or value <= self.maximum)
+                and value == value)  # NaN is in no range
+
+
+MODE = Setting("mode", "Mode", "What the transfer holds", "shadowed", choices=(
+    ("unshadowed", "Unshadowed", "Cosine term only: exact, instant, no rays"),
+    ("shadowed", "Shadowed", "Cosine term and visibility from ray casts: soft shadows"),
+    ("interreflected", "Interreflected",
+     "Shadows plus light bounced between surfaces, coloured by their albedo (no extra rays)"),
+))
+ORDER = Setting("order", "Order", "SH bands (order n stores n² coefficients)", 4, 1, MAX_ORDER)
+SAMPLES = Setting("samples", "Samples", "Rays per vertex (the first round when a target error is set)", 256,
+                  FEWEST_SAMPLES, MOST_SAMPLES)
+TARGET_ERROR = Setting("target_error", "Target Error",
+                       "Keep sampling each vertex until its estimated relative error is below this (0: off)",
+                       0.0, 0.0, 1.0)
+MAX_SAMPLES = Setting("max_samples", "Max Samples", "Ray budget per vertex when a target error is set",
+                      16384, FEWEST_SAMPLES, MOST_SAMPLES)
+SEED = Setting("seed", "Seed", "Random seed: the same seed gives the same bake", 0, 0)
+BOUNCES = Setting("bounces", "Bounces", "Interreflection bounces; auto: until the rest of the series is below the "
+                  "tolerance", 2, 0, 1000, auto=True)
+BOUNCE_TOLERANCE = Setting("bounce_tolerance", "Tolerance", "Relative error that auto bounces may leave out",
+                           1e-3, 1e-8, 0.5)
+WORKERS = Setting("workers", "Workers", "Processes that cast rays in parallel (the result is the same)", 1, 1,
+                  MAX_WORKERS)
+
+# What BakeSettings holds, in the order the panel and the help show them; workers only change how fast.
+BAKE = (MODE, ORDER, SAMPLES, TARGET_ERROR, MAX_SAMPLES, SEED, BOUNCES, BOUNCE_TOLERANCE)
+MODES = tuple(identifier for identifier, _, _ in MODE.choices)
