@@ -1,7 +1,7 @@
-"""Bake benchmarks, measured side by side in one run on the demo scene (the seed's torus room).
+"""Bake benchmarks, measured side by side in one run on the demo scene (the original program's torus room).
 
 1. Ray-cast efficiency: the bake's rays/s ÷ a bare BVHTree.ray_cast loop over the very same rays.
-2. Estimator error: our estimator and the seed's (uniform sphere, weight 4π/N) at 256 rays per vertex,
+2. Estimator error: our estimator and the original program's (uniform sphere, weight 4π/N) at 256 rays per vertex,
    both against an independent 16,384-ray reference.
 3. The demo bake at order 4, shadowed, target error 0.01, 2 workers: wall time and actual error.
 4. Workers: 2 workers ÷ 1 worker wall time, and bit-identical results.
@@ -24,7 +24,8 @@ sys.path.insert(0, ROOT)
 import bpy  # noqa: E402  (bpy before mathutils, which the core imports)
 import numpy as np  # noqa: E402
 
-from prt_addon import baking, scenes  # noqa: E402
+from prt_addon.blender import sample_scenes  # noqa: E402
+from prt_addon.blender.scene_bake import SceneBake, worker_launch  # noqa: E402
 from prt_addon.core import bake, job, sh  # noqa: E402
 
 ORDER = 4
@@ -64,14 +65,14 @@ GOALS = {
 # -- the scene ------------------------------------------------------------------------------------------
 def fresh_demo_scene():
     bpy.ops.wm.read_homefile(use_empty=True)
-    scenes.build_demo_scene()
+    sample_scenes.build_demo_scene()
 
 
 def scene_geometry():
     """Receivers and occluders exactly as the bake gathers them (nothing is baked)."""
     fresh_demo_scene()
-    gathered = baking.SceneBake(bpy.context, bake.BakeSettings(order=ORDER))
-    return gathered.receivers, gathered.job.occluders
+    gathered = SceneBake(bpy.context, bake.BakeSettings(order=ORDER))
+    return gathered.job.receivers, gathered.job.occluders
 
 
 @dataclass
@@ -151,7 +152,7 @@ def subset_receivers(receivers, picks):
 def bake_picks(receivers, occluders, picks, settings, workers=1):
     """Our estimator on the picked vertices only → (transfer, std_error, rel_error) in pick order."""
     subsets, rows = subset_receivers(receivers, picks)
-    results = job.TransferJob(subsets, occluders, settings, workers, baking.worker_launch()).run()
+    results = job.TransferJob(subsets, occluders, settings, workers, worker_launch()).run()
     stacked = [np.concatenate([getattr(r, name) for r in results])[rows]
                for name in ("transfer", "std_error", "rel_error")]
     return tuple(stacked)
@@ -255,7 +256,7 @@ def ray_cast_efficiency(caster, receivers, config):
 
 # -- 2. estimator error -----------------------------------------------------------------------------------
 def seed_estimator(caster, positions, normals, inward, rays, rng):
-    """The seed's SHBuilder: uniform random directions over the whole sphere, weight 4π/N, here in our
+    """The original program's SHBuilder: uniform random directions over the whole sphere, weight 4π/N, here in our
     convention T_k = (1/π)(4π/N) Σ V·max(n·ω, 0)·Y_k. V is the bake's own (caster.occluded), from the
     origins shadowed_chunk uses, so only the estimators differ."""
     count = len(positions)
@@ -315,13 +316,13 @@ def scene_bake(settings, objects, workers):
     geometry, baking and storing, what a user waits for."""
     fresh_demo_scene()
     start = time.perf_counter()
-    run = baking.SceneBake(bpy.context, settings, objects, workers)
+    run = SceneBake(bpy.context, settings, objects, workers)
     run.run(log=lambda line: None)
     return time.perf_counter() - start, run
 
 
 def results_by_name(run):
-    return {receiver.name: result for receiver, result in zip(run.receivers, run.job.results())}
+    return {receiver.name: result for receiver, result in zip(run.job.receivers, run.job.results())}
 
 
 def demo_bake(receivers, sample_sets, all_picks, reference, config):

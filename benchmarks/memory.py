@@ -19,7 +19,7 @@ sys.path.insert(0, ROOT)
 import bpy  # noqa: E402  (before mathutils)
 import numpy as np  # noqa: E402
 
-from prt_addon.baking import SceneBake  # noqa: E402
+from prt_addon.blender.scene_bake import SceneBake  # noqa: E402
 from prt_addon.core.bake import BakeSettings  # noqa: E402
 
 

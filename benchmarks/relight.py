@@ -25,7 +25,9 @@ sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 import bpy  # noqa: E402  (before mathutils, which the core uses)
 
-from prt_addon import baking, display, ui  # noqa: E402
+import prt_addon  # noqa: E402
+from prt_addon.blender import display  # noqa: E402
+from prt_addon.blender.scene_bake import SceneBake  # noqa: E402
 from prt_addon.core import bake  # noqa: E402
 
 SIDES = (100, 317, 1000)  # grid side: 10 k, 100 k and 1 M vertices
@@ -37,7 +39,7 @@ GOAL_RATIO = 1.1
 def baked_grid(side):
     bpy.ops.wm.read_homefile(use_empty=True)
     bpy.ops.mesh.primitive_grid_add(x_subdivisions=side - 1, y_subdivisions=side - 1, size=2)
-    baking.SceneBake(bpy.context, bake.BakeSettings(order=4, mode="unshadowed")).run(log=lambda line: None)
+    SceneBake(bpy.context, bake.BakeSettings(order=4, mode="unshadowed")).run(log=lambda line: None)
     return bpy.context.object
 
 
@@ -113,7 +115,7 @@ def main(argv=None):
     parser.add_argument("--steps", type=int, default=60, help="timed updates per configuration")
     parser.add_argument("--json", metavar="PATH", help="also write the numbers as JSON")
     args = parser.parse_args(argv)
-    ui.register()
+    prt_addon.register()
     print(f"relight benchmark: bpy {bpy.app.version_string}, {os.cpu_count()} cores, "
           f"load average {os.getloadavg()[0]:.2f}")
     print(f"order 4, median of {args.steps} updates each; ms from a light change to the colours written")
@@ -130,7 +132,7 @@ def main(argv=None):
                   f" {ms['eight_all']:>11.2f}ms {ms['ratio_all_moving']:>6.2f} {ms['full']:>10.2f}ms")
             gc.collect()
     gc.enable()
-    ui.unregister()
+    prt_addon.unregister()
     largest = max(results)
     time_ms = results[largest]["one"]
     print(f"per update at {largest:,} vertices: {time_ms:.1f} ms   goal <= {GOAL_MS:.0f} ms   "
