@@ -1,15 +1,21 @@
 """Subsurface SH transfer per vertex with the diffusion dipole (Jensen, Marschner, Levoy and Hanrahan 2001),
 as D3DX's PRT engine's ComputeSS did.
 
-Relations (per colour channel; σ_s' reduced scattering, σ_a absorption, η the relative index of refraction):
+Relations (per colour channel; σ_s' reduced scattering, σ_a absorption, η the medium's index of refraction
+relative to outside):
     σ_t' = σ_s' + σ_a,   α' = σ_s'/σ_t',   σ_tr = √(3 σ_a σ_t')
-    F_dr = −1.440/η² + 0.710/η + 0.668 + 0.0636 η     (Egan and Hilgeman's fit, η ≥ 1)
+    F_dr = ∫_0^1 F(μ) 2μ dμ    (the diffuse Fresnel reflectance of light inside meeting the boundary: F is the
+                                unpolarised Fresnel reflectance at cosine μ inside, 1 beyond the critical angle)
     A = (1 + F_dr)/(1 − F_dr),   z_r = 1/σ_t',   z_v = z_r (1 + 4A/3),   d = √(r² + z²)
     R_d(r) = α'/(4π) · Σ_{z ∈ {z_r, z_v}} z (1 + σ_tr d) e^{−σ_tr d} / d³
 Integrating over the plane (r dr = d dd, and d/dd[−e^{−σd}/d] = (σ/d + 1/d²) e^{−σd}) gives in closed form
     ∫_0^R R_d(r) 2πr dr = α'/2 · Σ_z [e^{−σ_tr z} − (z/d(R)) e^{−σ_tr d(R)}]
 whose limit R → ∞ is the total diffuse reflectance (with s = σ_tr/σ_t' = √(3(1 − α'))):
     R_d,total = α'/2 · (1 + e^{−(4/3) A s}) e^{−s}.
+
+F_dr is integrated exactly for any η > 0 (boundary_factor; η < 1 by reciprocity), not with the polynomial fit of
+Egan and Hilgeman that Jensen quotes (for η ≥ 1): that drifts from the integral beyond η ≈ 2.3 and exceeds 1 from
+η ≈ 3.85 (A < 0, the dipole turns black), while the Principled BSDF's IOR, passed on as η, goes up to 1000.
 
 Material inputs (Jensen and Buhler 2002, "A rapid hierarchical rendering technique for translucent materials"):
 Blender's Subsurface Radius × Subsurface Scale is the diffuse mean free path ℓ_d = 1/σ_tr per channel, and the
@@ -37,6 +43,7 @@ Distances are straight lines, so light crosses thin parts (and, a known limit of
 """
 
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 
@@ -57,6 +64,17 @@ RING_STEPS = 8
 # Values of (pairs × 3 channels × coefficients) held at once by the gather: 32 MB of float64.
 BLOCK_VALUES = 1 << 22
 _BISECTION_STEPS = 64
+# s is bisected further: where F_dr ≈ 1 (A up to 4e8 at η = 1000) R_d,total falls from 1 to 1/2 within s ≲ 1/A and
+# is as steep as A/2 there; 96 halvings of [0, √3] leave R_d,total within rounding of the albedo (64: 7e-12).
+_S_BISECTION_STEPS = 96
+# η is clamped to [1/MAX_IOR, MAX_IOR], a range reciprocity maps onto itself (the Principled BSDF's IOR slider
+# ends at 1000; F_dr is then within 6e-9 of 1, and far beyond it 1 − F_dr ∝ η⁻³ would underflow).
+MAX_IOR = 1000.0
+# Gauss-Legendre nodes on [0, 1] for the boundary's transmittance 1 − F_dr (see _boundary_transmittance): within
+# a relative 2e-14 of the integral (checked against its closed form in 80-digit decimals) for η (or 1/η) from
+# 1 + 1e-7 to 1000, 5e-13 nearer to 1. (64 nodes without the stretch were 3e-6 off at η = 1000.)
+_FRESNEL_NODES, _FRESNEL_WEIGHTS = np.polynomial.legendre.leggauss(48)
+_FRESNEL_NODES, _FRESNEL_WEIGHTS = 0.5 * (_FRESNEL_NODES + 1.0), 0.5 * _FRESNEL_WEIGHTS
 
 
 @dataclass(frozen=True)
@@ -87,10 +105,48 @@ class DipoleParameters:
         return self.z_r * (1.0 + 4.0 * boundary_factor(self.ior) / 3.0)
 
 
+@lru_cache(maxsize=64)
+def _boundary_transmittance(ior: float) -> float:
+    """1 − F_dr = ∫_0^1 (1 − F(μ)) 2μ dμ for light inside a medium of relative index η > 0 (see boundary_factor)."""
+    if ior == 1.0:
+        return 1.0
+    if ior < 1.0:
+        # Reciprocity: light crossing the boundary from either side, 1 − F_dr(η) = (1 − F_dr,outside(η))/η²,
+        # and light inside a medium of index η < 1 sees the interface as light outside one of index 1/η does,
+        # F_dr(η) = F_dr,outside(1/η): together 1 − F_dr(η) = (1 − F_dr(1/η))/η². No total internal reflection.
+        return _boundary_transmittance(1.0 / ior) / (ior * ior)
+    # For μ below the critical cosine μ_c = √(1 − 1/η²) all is reflected (the F = 1 part of F_dr is μ_c²): only
+    # [μ_c, 1] transmits. There the cosine outside, η√(μ² − μ_c²), has a square-root kink at μ_c, which
+    # μ = μ_c + (1 − μ_c) x² turns into an analytic integrand in x ∈ [0, 1]: the cosine outside is
+    # η x √((1 − μ_c)(μ + μ_c)), and dμ = 2(1 − μ_c) x dx. The p wave's transmittance then varies on a scale 1/η
+    # near x = 0 (a pole at x ≈ −1/η), which x = (e^{λy} − 1)/(e^λ − 1) with λ = ln(1 + η) moves to y = −∞; the
+    # nodes are in y ∈ [0, 1].
+    stretch = np.log1p(ior)
+    x = np.expm1(stretch * _FRESNEL_NODES) / np.expm1(stretch)
+    dx_dy = stretch * (x + 1.0 / np.expm1(stretch))
+    inverse_square = 1.0 / (ior * ior)
+    critical = np.sqrt(1.0 - inverse_square)
+    span = inverse_square / (1.0 + critical)  # 1 − μ_c without cancellation at large η
+    inside = critical + span * x * x
+    outside = ior * x * np.sqrt(span * (inside + critical))
+    # Transmittance 1 − F of unpolarised light, s and p apart: 4ab/(a + b)² has no cancellation where F ≈ 1.
+    s_a, s_b = ior * inside, outside
+    p_a, p_b = ior * outside, inside
+    transmitted = 2.0 * s_a * s_b / (s_a + s_b) ** 2 + 2.0 * p_a * p_b / (p_a + p_b) ** 2
+    return float(np.dot(_FRESNEL_WEIGHTS, transmitted * 2.0 * inside * 2.0 * span * x * dx_dy))
+
+
+def diffuse_fresnel_reflectance(ior):
+    """F_dr = ∫_0^1 F(μ) 2μ dμ for light inside a medium of relative index η > 0 meeting its boundary."""
+    return 1.0 - _boundary_transmittance(float(ior))
+
+
 def boundary_factor(ior):
-    """A = (1 + F_dr)/(1 − F_dr) with F_dr from Egan and Hilgeman's fit (valid for η ≥ 1)."""
-    fresnel = -1.440 / ior**2 + 0.710 / ior + 0.668 + 0.0636 * ior
-    return (1.0 + fresnel) / (1.0 - fresnel)
+    """A = (1 + F_dr)/(1 − F_dr) for a medium of relative index η > 0, F_dr = ∫_0^1 F(μ) 2μ dμ integrated exactly
+    (not Egan and Hilgeman's fit): 1 at η = 1, rising on both sides (η < 1 by reciprocity, see
+    _boundary_transmittance), ≈ (3/8) η³ for large η. Cached per η: the dipole's z_v asks for it often."""
+    transmitted = _boundary_transmittance(float(ior))
+    return (2.0 - transmitted) / transmitted
 
 
 def _total_reflectance_of(s, boundary):
@@ -101,20 +157,22 @@ def _total_reflectance_of(s, boundary):
 def _solve_for_s(albedo, boundary):
     """Bisection for R_d,total(s) = albedo; bisecting s (not α') keeps full relative precision near α' = 1."""
     low, high = np.zeros_like(albedo), np.full_like(albedo, np.sqrt(3.0))
-    for _ in range(_BISECTION_STEPS):
+    for _ in range(_S_BISECTION_STEPS):
         middle = 0.5 * (low + high)
         too_bright = _total_reflectance_of(middle, boundary) > albedo
         low, high = np.where(too_bright, middle, low), np.where(too_bright, high, middle)
     return 0.5 * (low + high)
 
 
-def dipole_parameters(radius_rgb, scale, albedo_rgb, ior=1.4) -> DipoleParameters:
-    """Subsurface Radius × Scale (ℓ_d = 1/σ_tr) and base colour (R_d,total) → σ_s', σ_a per channel.
+def dipole_parameters(mean_free_path_rgb, albedo_rgb, ior) -> DipoleParameters:
+    """Subsurface Radius × Scale (ℓ_d = 1/σ_tr), base colour (R_d,total) and IOR (η) → σ_s', σ_a per channel.
 
-    The albedo is clamped to [0, MAX_DIFFUSE_ALBEDO], ℓ_d to at least MIN_MEAN_FREE_PATH, η to at least 1."""
-    mean_free_path = np.maximum(np.asarray(radius_rgb, dtype=np.float64) * scale, MIN_MEAN_FREE_PATH)
+    The albedo is clamped to [0, MAX_DIFFUSE_ALBEDO], ℓ_d to at least MIN_MEAN_FREE_PATH, η to
+    [1/MAX_IOR, MAX_IOR]. η < 1 (allowed by the Principled BSDF) is a medium optically thinner than outside: its
+    boundary reflects without total internal reflection, F_dr rising again from 0 at η = 1 (see boundary_factor)."""
+    mean_free_path = np.maximum(np.asarray(mean_free_path_rgb, dtype=np.float64), MIN_MEAN_FREE_PATH)
     albedo = np.clip(np.asarray(albedo_rgb, dtype=np.float64), 0.0, MAX_DIFFUSE_ALBEDO)
-    ior = max(float(ior), 1.0)
+    ior = min(max(float(ior), 1.0 / MAX_IOR), MAX_IOR)
     s = _solve_for_s(albedo, boundary_factor(ior))
     reduced_albedo = np.where(albedo > 0.0, 1.0 - s * s / 3.0, 0.0)  # bisection leaves ~1e-19 at albedo 0
     sigma_t_prime = 1.0 / (mean_free_path * s)

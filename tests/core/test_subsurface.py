@@ -6,8 +6,8 @@ from scipy.integrate import quad
 
 from prt_addon.core import lobes, subsurface
 
-# Blender's default Subsurface Radius and Scale, with a skin-like base colour.
-SKIN = dict(radius_rgb=[1.0, 0.2, 0.1], scale=0.05, albedo_rgb=[0.8, 0.5, 0.4])
+# Blender's default Subsurface Radius (1, 0.2, 0.1) × Scale 0.05, with a skin-like base colour.
+SKIN = dict(mean_free_path_rgb=[0.05, 0.01, 0.005], albedo_rgb=[0.8, 0.5, 0.4], ior=1.4)
 
 
 def unpolarised_fresnel(cos_incident, n_from, n_to):
@@ -24,22 +24,35 @@ def unpolarised_fresnel(cos_incident, n_from, n_to):
 def diffuse_fresnel_reflectance(ior):
     """F_dr = 2∫₀^{π/2} F(θ) cos θ sin θ dθ = ∫₀¹ F(μ) 2μ dμ for light inside the medium of relative index η
     meeting its boundary (the dipole's boundary condition, Jensen et al. 2001; total internal reflection beyond
-    the critical angle, where quad is told about the kink)."""
+    the critical angle, where quad is told about the kink; none for η ≤ 1)."""
     kink = [np.sqrt(1.0 - 1.0 / ior**2)] if ior > 1.0 else None
     return quad(lambda mu: unpolarised_fresnel(mu, ior, 1.0) * 2.0 * mu, 0.0, 1.0, points=kink,
                 epsabs=1e-13, epsrel=1e-12, limit=200)[0]
 
 
+def boundary_transmittance(ior):
+    """1 − F_dr, integrated from outside for precision where F_dr ≈ 1: light inside a medium of index η < 1 meets
+    the interface as light outside one of index 1/η does, and for η > 1 reciprocity gives
+    1 − F_dr = (1 − F_dr,outside)/η² (checked below); 1 − F is never near 0 from outside, so no cancellation."""
+    outer = max(ior, 1.0 / ior)
+    outside = quad(lambda mu: (1.0 - unpolarised_fresnel(mu, 1.0, outer)) * 2.0 * mu, 0.0, 1.0,
+                   epsabs=1e-15, epsrel=1e-13, limit=200)[0]
+    return outside / ior**2 if ior >= 1.0 else outside
+
+
 def boundary(ior):
-    """A = (1 + F_dr)/(1 − F_dr) as the code has it (Egan and Hilgeman's fit to F_dr): the references below
-    then check the formulas around A to rounding, and A itself is checked against the exact F_dr apart."""
+    """A = (1 + F_dr)/(1 − F_dr) as the code has it: the references below then check the formulas around A to
+    rounding, and A itself is checked against the integrals apart."""
     return subsurface.boundary_factor(ior)
 
 
-def jensen_total_reflectance(reduced_albedo, ior):
-    """Jensen et al. 2001, total diffuse reflectance of the dipole."""
-    root = np.sqrt(3 * (1 - reduced_albedo))
-    return reduced_albedo / 2 * (1 + np.exp(-4 / 3 * boundary(ior) * root)) * np.exp(-root)
+def jensen_total_reflectance(sigma_s_prime, sigma_a, ior):
+    """Jensen et al. 2001, total diffuse reflectance of the dipole: α'/2 (1 + e^{−(4/3) A s}) e^{−s} with
+    s = √(3(1 − α')), and 1 − α' = σ_a/σ_t' taken as such. Where F_dr ≈ 1 (large A) the total exceeds 1/2 only for
+    s ≲ 1/A, where α' rounds to 1 (1 − α' = 3e-19 at η = 1000 and albedo 0.8)."""
+    sigma_t_prime = sigma_s_prime + sigma_a
+    root = np.sqrt(3 * sigma_a / sigma_t_prime)
+    return sigma_s_prime / sigma_t_prime / 2 * (1 + np.exp(-4 / 3 * boundary(ior) * root)) * np.exp(-root)
 
 
 def jensen_profile(r, sigma_s_prime, sigma_a, ior):
@@ -101,39 +114,69 @@ def test_the_reference_integral_obeys_reciprocity(ior):
 
 def fresnel_of_the_dipole(ior):
     """F_dr the dipole uses, read back from its sources' depths: z_v = z_r (1 + 4A/3), F_dr = (A − 1)/(A + 1)."""
-    params = subsurface.dipole_parameters([1.0] * 3, 1.0, [0.5] * 3, ior)
+    params = subsurface.dipole_parameters([1.0] * 3, [0.5] * 3, ior)
     factor = 0.75 * (params.z_v / params.z_r - 1.0)
     return (factor - 1.0) / (factor + 1.0)
 
 
-@pytest.mark.parametrize("ior", [1.0, 1.1, 1.2, 1.3, 1.4, 1.5, 1.6, 1.8, 2.0])
+@pytest.mark.parametrize("ior", [1.0, 1.0001, 1.1, 1.3, 1.4, 1.5, 2.0, 2.5, 3.0, 4.0, 10.0, 100.0, 1000.0])
 def test_boundary_reflectance_is_the_integrated_fresnel_reflectance(ior):
-    """Egan and Hilgeman's polynomial is a fit to this integral: on 1 ≤ η ≤ 2 it stays within 1.6e-3 of it (worst
-    at η = 1, where the exact value is 0; 5e-4 near η = 1.3-1.4, where F_dr ≈ 0.44-0.53)."""
-    np.testing.assert_allclose(fresnel_of_the_dipole(ior), diffuse_fresnel_reflectance(ior), rtol=0, atol=2e-3)
+    """Over the Principled BSDF's whole IOR range; within 1e-13 where measured. (Egan and Hilgeman's fit, used
+    before, was 1.6e-3 off at η = 1, 0.005 at 2.5, 0.016 at 3, and exceeded 1 from η ≈ 3.85: A < 0, the dipole
+    black at η = 4 and negative at η = 1000.)"""
+    np.testing.assert_allclose(fresnel_of_the_dipole(ior), diffuse_fresnel_reflectance(ior), rtol=0, atol=1e-12)
 
 
-@pytest.mark.xfail(strict=True, reason="Egan and Hilgeman's fit leaves the integral beyond η ≈ 2.3 (F_dr 0.005 "
-                   "too high at 2.5, 0.016 at 3) and exceeds 1 from η ≈ 3.85 (A < 0: the dipole turns black), while "
-                   "the Principled BSDF's IOR, which the bake passes on, goes up to 1000")
-@pytest.mark.parametrize("ior", [2.5, 3.0, 4.0, 10.0])
-def test_boundary_reflectance_beyond_the_fits_range(ior):
-    np.testing.assert_allclose(fresnel_of_the_dipole(ior), diffuse_fresnel_reflectance(ior), rtol=0, atol=2e-3)
+@pytest.mark.parametrize("ior", [0.999, 0.9, 0.75, 0.5, 0.1, 0.001])
+def test_boundary_reflectance_inside_an_optically_thinner_medium(ior):
+    """η < 1 (the Principled BSDF allows IOR < 1): the same integral, with no total internal reflection; the code
+    takes it from η > 1 by reciprocity, the reference integrates it directly."""
+    np.testing.assert_allclose(fresnel_of_the_dipole(ior), diffuse_fresnel_reflectance(ior), rtol=0, atol=1e-12)
 
 
-@pytest.mark.parametrize("ior", [1.0, 1.3, 1.4, 2.0])
+@pytest.mark.parametrize("ior", [0.001, 0.5, 1.0001, 1.4, 2.0, 4.0, 10.0, 100.0, 1000.0])
+def test_boundary_factor_keeps_its_precision_where_fresnel_nears_one(ior):
+    """A = (2 − t)/t with t = 1 − F_dr: at η = 1000, t = 5e-9, and an error of 1e-13 in F_dr would be 2e-5 of A."""
+    transmitted = boundary_transmittance(ior)
+    np.testing.assert_allclose(subsurface.boundary_factor(ior), (2.0 - transmitted) / transmitted, rtol=1e-12)
+
+
+def test_boundary_factor_is_one_at_a_matched_index_and_rises_on_both_sides():
+    """No boundary at η = 1; reciprocity makes F_dr(η) = 1 − (1 − F_dr(1/η))/η² on the thinner side."""
+    assert subsurface.boundary_factor(1.0) == 1.0
+    iors = np.geomspace(1.0, 1000.0, 200)
+    factors = [subsurface.boundary_factor(ior) for ior in iors]
+    assert np.all(np.diff(factors) > 0)
+
+    def transmitted(ior):  # 1 − F_dr from A, without the cancellation of 1 − F_dr where F_dr ≈ 1
+        return 2 / (1 + subsurface.boundary_factor(ior))
+
+    for ior in (1.5, 4.0, 100.0, 1000.0):
+        np.testing.assert_allclose(transmitted(1 / ior), transmitted(ior) * ior**2, rtol=1e-13)
+        assert subsurface.boundary_factor(1 / ior) > 1.0
+
+
+@pytest.mark.parametrize("ior, clamped", [(0.0, 0.001), (-2.0, 0.001), (1e-5, 0.001), (0.5, 0.5), (1e6, 1000.0)])
+def test_ior_is_clamped_to_blenders_range_and_its_reciprocal(ior, clamped):
+    params = subsurface.dipole_parameters([1.0] * 3, [0.5] * 3, ior)
+    assert params.ior == clamped
+    assert np.isfinite(params.z_v).all() and np.all(params.z_v > params.z_r)
+
+
+@pytest.mark.parametrize("ior", [0.001, 0.5, 1.0, 1.3, 1.4, 2.0, 4.0, 1000.0])
 def test_parameters_reproduce_the_material_inputs(ior):
+    """Including η = 4 and 1000, where Egan and Hilgeman's fit made the dipole black (~1e-17) or negative."""
     albedo = np.array([0.0, 0.01, 0.3, 0.8, 0.99, 0.999])
     radius = np.array([0.5, 1.0, 2.0, 0.1, 3.0, 1.0])
-    params = subsurface.dipole_parameters(radius, 0.2, albedo, ior)
-    # α' = σ_s'/σ_t' rounds, and near α' = 1 the total is steep in α' (1 − α' = 3e-8 at albedo 0.999).
-    np.testing.assert_allclose(jensen_total_reflectance(params.reduced_albedo, ior), albedo, rtol=0, atol=1e-10)
+    params = subsurface.dipole_parameters(0.2 * radius, albedo, ior)
+    np.testing.assert_allclose(jensen_total_reflectance(params.sigma_s_prime, params.sigma_a, ior), albedo,
+                               rtol=0, atol=1e-13)
     np.testing.assert_allclose(1 / params.sigma_tr, 0.2 * radius, rtol=1e-13)
     np.testing.assert_allclose(subsurface.reflectance_within(np.inf, params), albedo, rtol=0, atol=1e-13)
 
 
 def test_profile_matches_jensens_formula():
-    params = subsurface.dipole_parameters(**SKIN, ior=1.3)
+    params = subsurface.dipole_parameters(**dict(SKIN, ior=1.3))
     r = np.array([0.0, 1e-4, 0.003, 0.02, 0.1, 0.4])
     expected = np.stack([jensen_profile(r, s, a, 1.3) for s, a in zip(params.sigma_s_prime, params.sigma_a)], 1)
     np.testing.assert_allclose(subsurface.diffuse_reflectance_profile(r, params), expected, rtol=1e-12)
@@ -142,14 +185,15 @@ def test_profile_matches_jensens_formula():
 
 @pytest.mark.parametrize("albedo, ior", [([0.05, 0.5, 0.95], 1.4), ([0.2, 0.8, 0.99], 1.8), ([0.3, 0.6, 0.9], 1.0)])
 def test_radial_integral_matches_the_closed_form_total(albedo, ior):
-    params = subsurface.dipole_parameters([1.0, 0.5, 2.0], 1.0, albedo, ior)
+    params = subsurface.dipole_parameters([1.0, 0.5, 2.0], albedo, ior)
     log_r = np.linspace(np.log(1e-8 * params.z_r.min()), np.log(80.0), 40001)  # below: < 1e-16 of it
     r = np.exp(log_r)
     # ∫ R_d 2πr dr = ∫ R_d 2πr² d(ln r): smooth on a log grid through the peak and the tail.
     integrand = subsurface.diffuse_reflectance_profile(r, params) * (2 * np.pi * r * r)[:, None]
     steps = np.diff(log_r)[:, None]
     partial = np.concatenate([np.zeros((1, 3)), np.cumsum(0.5 * (integrand[1:] + integrand[:-1]) * steps, 0)])
-    np.testing.assert_allclose(partial[-1], jensen_total_reflectance(params.reduced_albedo, ior), rtol=1e-3)
+    np.testing.assert_allclose(partial[-1], jensen_total_reflectance(params.sigma_s_prime, params.sigma_a, ior),
+                               rtol=1e-3)
     some = np.searchsorted(r, [0.01, 0.3, 3.0])
     np.testing.assert_allclose(subsurface.reflectance_within(r[some], params), partial[some], rtol=1e-6)
 
@@ -157,7 +201,7 @@ def test_radial_integral_matches_the_closed_form_total(albedo, ior):
 def test_disc_mean_profile_against_a_fine_grid_over_the_disc():
     """Smooth (z_r = 7.5ρ), sharp (z_r = ρ/3) and very sharp (z_r = ρ/30) profiles, receiver at the centre,
     inside, on the rim and outside the disc."""
-    params = subsurface.dipole_parameters([1.0] * 3, 1.0, [0.2, 0.9, 0.99])
+    params = subsurface.dipole_parameters([1.0] * 3, [0.2, 0.9, 0.99], 1.4)
     rho = 0.1
     cells = (np.arange(1200) + 0.5) / 1200 * 2 - 1
     xs, ys = np.meshgrid(cells, cells)
@@ -176,7 +220,7 @@ def test_disc_mean_profile_against_a_fine_grid_over_the_disc():
 
 @pytest.mark.parametrize("albedo", [[0.1, 0.5, 0.9], [0.0, 0.99, 0.3]])
 def test_default_radius_keeps_all_but_the_tail(albedo):
-    params = subsurface.dipole_parameters([1.0, 0.3, 0.6], 1.0, albedo)
+    params = subsurface.dipole_parameters([1.0, 0.3, 0.6], albedo, 1.4)
     radius = subsurface.default_max_radius(params)
     lost = 1 - subsurface.reflectance_within(radius, params) / np.maximum(np.asarray(albedo), 1e-300)
     scatters = np.asarray(albedo) > 0
@@ -188,7 +232,7 @@ def test_default_radius_keeps_all_but_the_tail(albedo):
 def test_grid_gather_equals_brute_force(max_radius, monkeypatch):
     monkeypatch.setattr(subsurface, "BLOCK_VALUES", 5000)  # many blocks, some splitting one cell pair
     positions, normals, areas, incident = random_mesh(300)
-    params = subsurface.dipole_parameters([0.3, 0.1, 0.05], 1.0, [0.9, 0.6, 0.3])
+    params = subsurface.dipole_parameters([0.3, 0.1, 0.05], [0.9, 0.6, 0.3], 1.4)
     radius = subsurface.default_max_radius(params) if max_radius is None else max_radius
     if max_radius is None:
         assert 0.3 < radius < 3.0  # several cells across the box
@@ -212,12 +256,13 @@ def test_linear_in_incident_transfer():
                                atol=1e-12 * np.abs(combined).max())
 
 
+@pytest.mark.parametrize("ior", [1.4, 4.0, 1000.0])
 @pytest.mark.parametrize("albedo", [[0.1, 0.2, 0.3], [0.8, 0.95, 0.99]])
-def test_flat_slab_under_uniform_irradiance_shows_its_albedo(albedo):
+def test_flat_slab_under_uniform_irradiance_shows_its_albedo(albedo, ior):
     """Radiance = R_d,total(α')·E/π: within 1 % whether the profile is wider (z_r ≈ 0.5-1 ℓ_d) or far
-    sharper (z_r ≈ 0.003-0.07 ℓ_d) than the spacing of 0.25 ℓ_d. Plain point samples R_d(r)·A_q would
-    overshoot the sharp set 1.8- to 500-fold."""
-    params = subsurface.dipole_parameters([1.0] * 3, 1.0, albedo)
+    sharper (z_r ≈ 0.003-0.07 ℓ_d at η = 1.4, 4e-11-1e-9 ℓ_d at η = 1000) than the spacing of 0.25 ℓ_d. Plain point
+    samples R_d(r)·A_q would overshoot the sharp set at η = 1.4 1.8- to 500-fold."""
+    params = subsurface.dipole_parameters([1.0] * 3, albedo, ior)
     positions, normals, areas = flat_grid(subsurface.default_max_radius(params), 0.25)
     incident = lobes.cosine_transfer(2, normals)
     sky = lobes.constant_sky(2, radiance=1 / np.pi)  # irradiance 1 on the slab
@@ -227,7 +272,7 @@ def test_flat_slab_under_uniform_irradiance_shows_its_albedo(albedo):
 
 def test_thin_slab_transmits_light_and_a_thick_one_almost_none():
     """Back face lit, front face dark: the front receives only what crosses the slab."""
-    params = subsurface.dipole_parameters([1.0] * 3, 1.0, [0.3, 0.6, 0.9])  # ℓ_d = 1 in every channel
+    params = subsurface.dipole_parameters([1.0] * 3, [0.3, 0.6, 0.9], 1.4)  # ℓ_d = 1 in every channel
     front_centre = {}
     for thickness in (0.5, 10.0):
         back = flat_grid(3.0, 0.3, 0.0, (0.0, 0.0, -1.0))
@@ -247,7 +292,7 @@ def test_thin_slab_transmits_light_and_a_thick_one_almost_none():
     (1.0, [0.0, 0.0, 0.0])])
 def test_extremes_stay_finite(radius, albedo):
     positions, normals, areas, incident = random_mesh(150, seed=3)
-    params = subsurface.dipole_parameters([radius] * 3, 1.0, albedo)
+    params = subsurface.dipole_parameters([radius] * 3, albedo, 1.4)
     result = subsurface.subsurface_transfer(positions, normals, areas, incident, params)
     assert np.all(np.isfinite(result))
     assert np.all(params.sigma_a > 0) and np.all(np.isfinite(params.sigma_s_prime))
@@ -274,7 +319,7 @@ def test_empty_mesh_gives_empty_transfer():
 def test_tiny_radius_is_a_lambertian_surface_of_the_base_colour():
     positions, normals, areas, incident = random_mesh(150, seed=4)
     albedo = np.array([0.2, 0.7, 1.0])
-    params = subsurface.dipole_parameters([1e-7] * 3, 1.0, albedo)
+    params = subsurface.dipole_parameters([1e-7] * 3, albedo, 1.4)
     result = subsurface.subsurface_transfer(positions, normals, areas, incident, params)
     seen = incident.copy()
     # Coincident vertices are one site: both show the area-weighted mean of what their areas receive.
