@@ -102,6 +102,22 @@ def test_albedo_one_stays_bounded():
     np.testing.assert_allclose(total[:, 0, 0], 1 / (1 - interreflect.MAX_ALBEDO), rtol=1e-3)
 
 
+@pytest.mark.parametrize("limit", [3, interreflect.MAX_BOUNCES])
+def test_auto_bounces_stopped_at_the_limit_tell_the_user(monkeypatch, limit):
+    """A box open at the top lets the sky in; at ρ = 0.95 three bounces leave much of the series out, so a bake
+    that hits that limit must say it did not converge, and one under the real limit must not."""
+    vertices, triangles, normals = closed_box(cuts=2)
+    open_top = triangles[~np.all(vertices[triangles][:, :, 2] > 0.0, axis=1)]
+    monkeypatch.setattr(interreflect, "MAX_BOUNCES", limit)
+    the_job, results = interreflected_job(vertices, open_top, normals, np.full((len(vertices), 1), 0.95),
+                                          order=2, samples=32)
+    summary = the_job.summary(results)
+    stopped = limit == 3
+    assert the_job.bounce_report.converged is summary.bounces_converged is (not stopped)
+    assert (summary.bounces == 3) is stopped and np.any(results[0].transfer)
+    assert ("NOT converged" in summary.line()) is stopped
+
+
 def test_white_floor_turns_red_beside_a_red_wall():
     """A floor with a red wall standing on one side: floor vertices near the wall gather red light."""
     ticks = np.linspace(-1.0, 1.0, 11)
@@ -126,7 +142,7 @@ def test_white_floor_turns_red_beside_a_red_wall():
     red_over_green = result.transfer[:, 0, 0] / result.transfer[:, 1, 0]
     assert red_over_green[near] > 1.05 and red_over_green[near] > red_over_green[far] + 0.03
     summary = the_job.summary([result])
-    assert summary.bounces == 3 and len(summary.bounce_changes) == 3
+    assert summary.bounces == 3 and len(summary.bounce_changes) == 3 and summary.bounces_converged  # as asked
     assert summary.bounce_changes[0] > summary.bounce_changes[1] > summary.bounce_changes[2] > 0
 
 

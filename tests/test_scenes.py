@@ -178,10 +178,3 @@ def test_suzanne_rests_on_the_plane(suzanne_scene):
     plane = world_positions(suzanne_scene["plane"])[:, 2]
     assert np.ptp(plane) < 1e-6  # level
     assert abs(lowest - plane.max()) < 1e-6
-
-
-def test_clear_scene_leaves_no_objects_or_their_data(demo):
-    scenes.clear_scene()
-    for collection in (bpy.data.objects, bpy.data.meshes, bpy.data.materials,
-                       bpy.data.images, bpy.data.lights, bpy.data.cameras):
-        assert len(collection) == 0

@@ -6,6 +6,8 @@ import numpy as np
 from ..core import bake, polygons
 from .geometry import mesh_positions, mesh_triangles, points_to_world
 
+HULL_TEST_POINTS = 1 << 16  # points tested against the extremes' hull at once, so memory stays bounded
+
 
 def occluders_from_depsgraph(depsgraph, surfaces=()) -> tuple[bake.Occluders, set]:
     """The solved surfaces first, in the job's order (the occluders' `solved_vertices`, so a hit triangle's corners
@@ -88,7 +90,7 @@ def _hull(points: np.ndarray):
     return vertices, (normals, offsets)
 
 
-def _outside_polytope_of_extremes(points: np.ndarray, chunk: int = 1 << 16):
+def _outside_polytope_of_extremes(points: np.ndarray):
     """Akl-Toussaint: a point strictly inside the hull of some extreme points is no hull vertex, so the exact
     hull only needs the rest (for a room with objects inside, a handful of points instead of every vertex)."""
     axes = np.array([(x, y, z) for x in (-1, 0, 1) for y in (-1, 0, 1) for z in (-1, 0, 1) if (x, y, z) != (0, 0, 0)])
@@ -101,5 +103,5 @@ def _outside_polytope_of_extremes(points: np.ndarray, chunk: int = 1 << 16):
     tolerance = 1e-5 * (np.abs(points).max() + 1.0)  # bmesh stores float32: keep points near the faces
     keep = np.concatenate([
         np.any(block @ normals.T - offsets >= -tolerance, axis=1)
-        for block in np.array_split(points, max(1, len(points) // chunk))])
+        for block in np.array_split(points, max(1, len(points) // HULL_TEST_POINTS))])
     return points[keep]

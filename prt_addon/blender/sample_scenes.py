@@ -8,12 +8,13 @@ import bmesh
 import bpy
 import numpy as np
 
-from .materials import new_node_material
+from .compat import new_node_material
 
 UV_MAP = "UVMap"
 ALBEDO_NAME = "Albedo"
 ALBEDO_SIZE = 512
 CHECKER_CELLS = 8
+CHECKER_BLUR_RADIUS = 6  # pixels of box blur that soften the cell borders
 # Muted sRGB tones: a mid-range albedo keeps interreflections visible without washing out.
 CHECKER_PALETTE = np.array([
     (0.80, 0.76, 0.68),
@@ -38,13 +39,6 @@ SUN_ANGLE = 0.1
 SUN_STRENGTH = 3.0
 
 RESOLUTION = (640, 480)
-
-
-def clear_scene():
-    """Remove all objects and the data they use, for a clean build."""
-    collections = (bpy.data.objects, bpy.data.meshes, bpy.data.materials,
-                   bpy.data.images, bpy.data.lights, bpy.data.cameras)
-    bpy.data.batch_remove([datablock for collection in collections for datablock in collection])
 
 
 def build_demo_scene() -> dict:
@@ -192,12 +186,12 @@ def _albedo_image():
     return image
 
 
-def _soft_checker_pixels(size, cells, blur_radius=6):
+def _soft_checker_pixels(size, cells):
     """Flat RGBA float pixels of a tileable checker whose cell borders are blurred."""
     cell = np.arange(size) * cells // size
     # Stepping one cell in x or y always changes colour; cells is a multiple of 4, so it tiles.
     colour_index = (cell[None, :] + 2 * cell[:, None]) % len(CHECKER_PALETTE)
-    rgb = _wrapped_box_blur(CHECKER_PALETTE[colour_index], blur_radius)
+    rgb = _wrapped_box_blur(CHECKER_PALETTE[colour_index], CHECKER_BLUR_RADIUS)
     rgba = np.concatenate([rgb, np.ones((size, size, 1))], axis=2)
     return rgba.astype(np.float32).ravel()
 

@@ -31,7 +31,7 @@ def with_subsurface(surface, transfer, weight, mean_free_path, albedo, ior):
     """(1 − w)·T + w·T_sss/albedo per channel: light scattered beneath the surface (Jensen's dipole, gathered
     from the object's own incident transfer) mixed in by the Subsurface Weight. T_sss carries its colour, and the
     display multiplies by albedo, hence the division."""
-    params = subsurface.dipole_parameters(mean_free_path, 1.0, albedo, ior)
+    params = subsurface.dipole_parameters(mean_free_path, albedo, ior)
     areas = subsurface.vertex_areas(surface.receiver.positions, surface.triangles)
     scattered = subsurface.subsurface_transfer(surface.receiver.positions, surface.receiver.normals, areas,
                                                transfer, params)  # (V, 3, n²); channel c scatters channel c
@@ -82,6 +82,7 @@ class BakeReport:
     bounces: int | None
     bounce_relative_changes: list
     bounce_tail: float
+    bounces_converged: bool  # False: auto bounces stopped at the bounce limit without converging
     albedo_clamped: bool
     subsurface_objects: list
 
@@ -184,5 +185,6 @@ class SceneBake(Job):
             skipped_vertices=s.skipped_vertices, time_s=s.time_s, rays_per_s=s.rays_per_s,
             est_rms_rel_error=s.est_rms_rel_error, est_max_rel_error=s.est_max_rel_error, per_object=s.per_object,
             problems=self.problems, notes=self.notes, phases_s=s.phases, bounces=s.bounces,
-            bounce_relative_changes=s.bounce_changes, bounce_tail=s.bounce_tail, albedo_clamped=s.albedo_clamped,
+            bounce_relative_changes=s.bounce_changes, bounce_tail=s.bounce_tail,
+            bounces_converged=s.bounces_converged, albedo_clamped=s.albedo_clamped,
             subsurface_objects=self.subsurface_objects)

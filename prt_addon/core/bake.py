@@ -32,6 +32,8 @@ TARGET_MARGIN = 1.15
 # spread each chunk's fixed numpy work over 32 k rays at 256 samples.
 CHUNK_VERTICES = 128
 RAYS_PER_BATCH = 1 << 16
+# Basis values (float64) that _replicate_means evaluates at once: 4M values = 32 MB, whatever the order and rays.
+REPLICATE_VALUES_AT_ONCE = 1 << 22
 # Ray origins sit this fraction of the scene's diagonal above the surface: scale-free, and far above
 # float32 rounding because the geometry is recentred on the scene's bounding box before the BVH is built.
 OFFSET_FRACTION = 1e-5
@@ -322,7 +324,7 @@ def _blocked_round(caster, origins, frames, unshadowed, flat, keys, round_index,
     return estimate.mean(1), estimate.var(1, ddof=1) / replicates, round_hits
 
 
-def _replicate_means(world, occluded, order, replicates, values_at_once=1 << 22):
+def _replicate_means(world, occluded, order, replicates):
     """Per vertex and replicate: mean of Y over all rays and of (1 − V)·Y, both as one small matrix product
     per replicate, a few replicates at a time so memory stays bounded at high orders and ray counts."""
     c, rays = occluded.shape
@@ -332,7 +334,7 @@ def _replicate_means(world, occluded, order, replicates, values_at_once=1 << 22)
     np.multiply(occluded.reshape(-1, per_replicate), 1.0 / per_replicate, out=weights[:, 1])
     directions = world.reshape(c * replicates, per_replicate, 3)
     means = np.empty((c * replicates, 2, coefficients))
-    step = max(1, values_at_once // (per_replicate * coefficients))
+    step = max(1, REPLICATE_VALUES_AT_ONCE // (per_replicate * coefficients))
     for first in range(0, c * replicates, step):
         part = slice(first, first + step)
         basis = sh.evaluate_components(order, directions[part].reshape(-1, 3))

@@ -96,7 +96,7 @@ class BounceReport:
     bounces: int = 0
     relative_changes: list = field(default_factory=list)  # ‖T_b‖ / ‖T₀ + … + T_b‖ per bounce
     tail: float = 0.0          # the geometric tail added after the last bounce, relative to the total (auto)
-    converged: bool = True
+    converged: bool = True     # False when auto bounces stopped at MAX_BOUNCES with the tail still uncertain
     albedo_clamped: bool = False
     time_s: float = 0.0
 
@@ -118,6 +118,7 @@ def interreflect(direct, albedo, operator: BounceOperator, bounces=None, toleran
     current = np.broadcast_to(current, (len(albedo), channels, current.shape[-1])).astype(np.float64)
     total = current.copy()
     limit = MAX_BOUNCES if bounces is None else int(bounces)
+    report.converged = bounces is not None  # a fixed count is what was asked for
     while report.bounces < limit and np.any(current):
         previous, current = current, operator.apply(albedo[:, :, None] * current)
         total += current
@@ -131,7 +132,9 @@ def interreflect(direct, albedo, operator: BounceOperator, bounces=None, toleran
                 tail = ratio / (1.0 - ratio)
                 total += current * tail
                 report.tail = float(size * tail / np.linalg.norm(total))
+                report.converged = True
                 break
-    report.converged = bounces is not None or report.bounces < limit
+    else:
+        report.converged = report.converged or not np.any(current)  # the series ended: nothing is left out
     report.time_s = time.perf_counter() - start
     return total, report

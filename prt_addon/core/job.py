@@ -51,11 +51,14 @@ class Summary:
     bounces: int | None = None                     # interreflected: bounces run
     bounce_changes: list = field(default_factory=list)  # relative change of each bounce
     bounce_tail: float = 0.0                       # geometric tail added after the last bounce (auto)
+    bounces_converged: bool = True                 # False: auto bounces stopped at the limit, not converged
     albedo_clamped: bool = False
 
     def line(self) -> str:
         bounced = (f", {self.bounces} bounces in {self.phases.get('bounces_s', 0.0):.2f} s "
                    f"(last change {self.bounce_changes[-1]:.1e})" if self.bounce_changes else "")
+        if not self.bounces_converged:
+            bounced += f"; auto bounces NOT converged: stopped at the limit of {self.bounces} bounces"
         return (f"PRT bake: {self.objects} objects, {self.vertices} vertices, order {self.order} {self.mode}: "
                 f"{self.time_s:.2f} s, {self.rays} rays, {self.rays_per_s / 1e3:.0f} k rays/s, "
                 f"{self.skipped_vertices} vertices exact without rays, "
@@ -288,6 +291,7 @@ class TransferJob(Job):
             bounces=self.bounce_report.bounces if self.bounce_report else None,
             bounce_changes=list(self.bounce_report.relative_changes) if self.bounce_report else [],
             bounce_tail=self.bounce_report.tail if self.bounce_report else 0.0,
+            bounces_converged=self.bounce_report.converged if self.bounce_report else True,
             albedo_clamped=bool(self.bounce_report and self.bounce_report.albedo_clamped))
 
 

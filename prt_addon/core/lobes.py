@@ -19,6 +19,7 @@ from . import sh
 
 # Basis values held at once by the equirect loops (float64): 4M values = 32 MB, whatever the image size.
 _CHUNK_VALUES = 1 << 22
+_RGB = 3  # colour channels projected; alpha is not light
 
 
 def _per_coefficient(band_values):
@@ -115,11 +116,6 @@ def _directions(polar_angles, azimuths):
     return np.stack([x, y, z], axis=-1)
 
 
-def equirect_directions(height, width):
-    """Pixel-centre directions (H, W, 3) in Blender's pixel layout (row 0 at the bottom)."""
-    return _directions(_row_polar_angles(height), _column_azimuths(width))
-
-
 def equirect_solid_angles(height, width):
     """Exact solid angle (H, 1) of the pixels in each row: (2π/W)·Δz, Δz the row's extent in z = cos θ.
 
@@ -136,17 +132,17 @@ def _row_chunks(height, width, order):
     return [(start, min(start + rows, height)) for start in range(0, height, rows)]
 
 
-def project_equirect(pixels, order, channels=3):
-    """∫ L(ω)·Y_k(ω) dω for an equirect image (H, W, C ≥ channels) → (channels, order²), each pixel taken as
-    its centre's value times its exact solid angle. Accumulates in float64, a few rows at a time."""
+def project_equirect(pixels, order):
+    """∫ L(ω)·Y_k(ω) dω for an equirect image (H, W, C ≥ 3) → (3, order²) for its RGB (alpha is ignored), each
+    pixel taken as its centre's value times its exact solid angle. Accumulates in float64, a few rows at a time."""
     height, width = pixels.shape[:2]
     polar_angles, azimuths = _row_polar_angles(height), _column_azimuths(width)
     solid_angles = equirect_solid_angles(height, width)
-    coeffs = np.zeros((channels, order * order))
+    coeffs = np.zeros((_RGB, order * order))
     for start, stop in _row_chunks(height, width, order):
         basis = sh.evaluate(order, _directions(polar_angles[start:stop], azimuths))
-        weighted = np.asarray(pixels[start:stop, :, :channels], dtype=np.float64) * solid_angles[start:stop, :, None]
-        coeffs += weighted.reshape(-1, channels).T @ basis.reshape(-1, order * order)
+        weighted = np.asarray(pixels[start:stop, :, :_RGB], dtype=np.float64) * solid_angles[start:stop, :, None]
+        coeffs += weighted.reshape(-1, _RGB).T @ basis.reshape(-1, order * order)
     return coeffs
 
 

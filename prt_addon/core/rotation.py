@@ -1,4 +1,4 @@
-"""Rotation of real SH coefficients and the quaternion helpers that feed it.
+"""Rotation of real SH coefficients, and the quaternion-to-matrix conversion that feeds it.
 
 Convention: rotating coefficients of f by R gives the coefficients of g(ω) = f(Rᵀω), so a
 lobe pointing at d ends up pointing at R·d. Band blocks are built from the 3×3 matrix by the
@@ -27,59 +27,6 @@ def quaternion_to_matrix(q):
     ])
 
 
-def quaternion_from_axis_angle(axis, angle):
-    """Unit quaternion (w, x, y, z) rotating by `angle` radians about `axis` (right hand)."""
-    axis = np.asarray(axis, dtype=np.float64)
-    half = 0.5 * angle
-    return np.concatenate([[math.cos(half)], math.sin(half) * axis / np.linalg.norm(axis)])
-
-
-def compose_quaternions(a, b):
-    """Unit quaternion of a⊗b (rotate by b, then by a); broadcasts over (..., 4).
-
-    Renormalising every product keeps repeated composition on the unit sphere, so
-    orientations accumulated from many small steps do not drift into a scaling.
-    """
-    a, b = np.asarray(a, dtype=np.float64), np.asarray(b, dtype=np.float64)
-    aw, ax, ay, az = np.moveaxis(a, -1, 0)
-    bw, bx, by, bz = np.moveaxis(b, -1, 0)
-    product = np.stack([
-        aw * bw - ax * bx - ay * by - az * bz,
-        aw * bx + ax * bw + ay * bz - az * by,
-        aw * by - ax * bz + ay * bw + az * bx,
-        aw * bz + ax * by - ay * bx + az * bw,
-    ], axis=-1)
-    return product / np.linalg.norm(product, axis=-1, keepdims=True)
-
-
-def accumulate_quaternions(increments):
-    """Running orientations of a sequence of incremental rotations: (N, 4) -> (N, 4).
-
-    Row k is increments[k] ⊗ ... ⊗ increments[0] (each step applied after the previous
-    ones), computed as a vectorised prefix scan: every result is a product of only
-    O(log N) renormalised factors, so rounding does not accumulate over the N steps.
-    Rebuild SH matrices from the result (band_matrices) instead of multiplying SH matrices.
-    """
-    increments = np.asarray(increments, dtype=np.float64)
-    return _running_products(increments / np.linalg.norm(increments, axis=-1, keepdims=True))
-
-
-def _running_products(steps):
-    """Prefix scan: pair neighbours, scan the pairs (odd rows), then fill in the even rows."""
-    if len(steps) <= 1:
-        return steps.copy()
-    running = np.empty_like(steps)
-    running[1::2] = _running_products(compose_quaternions(steps[1::2], steps[:-1:2]))
-    running[0] = steps[0]
-    running[2::2] = compose_quaternions(steps[2::2], running[1:-1:2])
-    return running
-
-
-def matrix_from_euler_zyz(alpha, beta, gamma):
-    """Rz(alpha) @ Ry(beta) @ Rz(gamma); a convenience for building test rotations."""
-    return _rotation_z(alpha) @ _rotation_y(beta) @ _rotation_z(gamma)
-
-
 def band_matrices(order, R):
     """Rotation blocks [(2l+1, 2l+1) for l < order] of rotation R ((3, 3) or quaternion)."""
     matrix = _as_rotation_matrix(R)
@@ -89,27 +36,12 @@ def band_matrices(order, R):
     return blocks
 
 
-def rotation_matrix(order, R):
-    """Dense block-diagonal (order², order²) matrix of band_matrices(order, R)."""
-    dense = np.zeros((order * order, order * order))
-    for l, block in enumerate(band_matrices(order, R)):
-        dense[l * l:(l + 1) ** 2, l * l:(l + 1) ** 2] = block
-    return dense
-
-
-def rotate(coeffs, R, order=None):
-    """Coefficients (..., n²) of f(Rᵀω) from those of f (any leading dims, e.g. RGB).
-
-    `order` defaults to all bands present; a smaller order rotates and returns only the
-    first order² coefficients.
-    """
+def rotate(coeffs, R):
+    """Coefficients (..., n²) of f(Rᵀω) from those of f (any leading dims, e.g. RGB)."""
     coeffs = np.asarray(coeffs, dtype=np.float64)
-    available = math.isqrt(coeffs.shape[-1])
-    if available * available != coeffs.shape[-1]:
+    order = math.isqrt(coeffs.shape[-1])
+    if order * order != coeffs.shape[-1]:
         raise ValueError(f"{coeffs.shape[-1]} is not a square number of coefficients")
-    order = available if order is None else order
-    if order > available:
-        raise ValueError(f"order {order} needs more than {coeffs.shape[-1]} coefficients")
     rotated = np.empty(coeffs.shape[:-1] + (order * order,))
     for l, block in enumerate(band_matrices(order, R)):
         band = slice(l * l, (l + 1) ** 2)
@@ -128,16 +60,6 @@ def zonal_to_sh(zonal, direction):
     bands = sh.coefficient_bands(order)
     scale = np.sqrt(4.0 * math.pi / (2 * bands + 1)) * zonal[..., bands]
     return sh.evaluate(order, direction) * scale
-
-
-def _rotation_z(angle):
-    c, s = math.cos(angle), math.sin(angle)
-    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-
-
-def _rotation_y(angle):
-    c, s = math.cos(angle), math.sin(angle)
-    return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
 
 
 def _as_rotation_matrix(rotation):

@@ -60,4 +60,3 @@ WORKERS = Setting("workers", "Workers", "Processes that cast rays in parallel (t
 
 # What BakeSettings holds, in the order the panel and the help show them; workers only change how fast.
 BAKE = (MODE, ORDER, SAMPLES, TARGET_ERROR, MAX_SAMPLES, SEED, BOUNCES, BOUNCE_TOLERANCE)
-MODES = tuple(identifier for identifier, _, _ in MODE.choices)

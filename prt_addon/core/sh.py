@@ -14,20 +14,9 @@ MAX_ORDER = 64
 _BLOCK_VALUES = 1 << 19  # values per evaluate() block: 4 MB stays in cache
 
 
-def num_coefficients(order):
-    """Number of coefficients of an order-`order` expansion (order²)."""
-    return order * order
-
-
 def index(l, m):
     """Coefficient index of band l, degree m."""
     return l * (l + 1) + m
-
-
-def band_of(k):
-    """(l, m) of coefficient index k."""
-    l = math.isqrt(k)
-    return l, k - l * (l + 1)
 
 
 def coefficient_bands(order):

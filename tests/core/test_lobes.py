@@ -7,6 +7,7 @@ import pytest
 from numpy.polynomial.legendre import leggauss
 from scipy.special import eval_legendre
 
+from equirect import equirect_directions
 from quadrature import reference_sh
 
 from prt_addon.core import lobes
@@ -124,20 +125,30 @@ def cycles_direction_to_uv(directions):
     return u, v
 
 
+def pixel_directions(height, width):
+    """The direction the code gives each pixel centre, read back by reconstructing x, y and z, which are
+    Y_1,1, Y_1,-1 and Y_1,0 scaled: Y_1,(-1, 0, 1) = √(3/4π)·(-y, z, -x)."""
+    coeffs = np.zeros((3, 4))
+    coeffs[0, 3], coeffs[1, 1], coeffs[2, 2] = -1.0, -1.0, 1.0
+    return lobes.reconstruct_equirect(coeffs / np.sqrt(3 / (4 * np.pi)), height, width)
+
+
 def test_pixel_centres_are_unit_and_map_back_to_their_pixel_through_cycles_formula():
     height, width = 16, 32
-    directions = lobes.equirect_directions(height, width)
+    directions = pixel_directions(height, width)
     np.testing.assert_allclose(np.linalg.norm(directions, axis=-1), 1.0, rtol=1e-15)
     u, v = cycles_direction_to_uv(directions)
     rows, columns = np.mgrid[0:height, 0:width]
     np.testing.assert_allclose(u, (columns + 0.5) / width, rtol=0, atol=1e-14)
     np.testing.assert_allclose(v, (rows + 0.5) / height, rtol=0, atol=1e-14)
+    # ... and so agree with the directions Cycles' inverse formula gives the pixel centres (the test images).
+    np.testing.assert_allclose(directions, equirect_directions(height, width), rtol=0, atol=1e-15)
 
 
 def test_known_directions_land_on_the_documented_pixels():
-    odd = lobes.equirect_directions(5, 9)       # centre pixel (2, 4) sits at u = v = 0.5
+    odd = pixel_directions(5, 9)       # centre pixel (2, 4) sits at u = v = 0.5
     np.testing.assert_allclose(odd[2, 4], [1, 0, 0], atol=1e-15)
-    quarter = lobes.equirect_directions(5, 6)   # columns 1 and 4 sit at u = 0.25 and 0.75
+    quarter = pixel_directions(5, 6)   # columns 1 and 4 sit at u = 0.25 and 0.75
     np.testing.assert_allclose(quarter[2, 1], [0, 1, 0], atol=1e-15)
     np.testing.assert_allclose(quarter[2, 4], [0, -1, 0], atol=1e-15)
     z = odd[..., 2]
@@ -208,7 +219,7 @@ def test_projection_of_band_limited_image_has_the_predicted_grid_error(order):
     pole_integrands = 2 * np.pi * (poles @ coeffs.T).T @ poles
     errors = []
     for height in [128, 256]:
-        image = reference_sh(order, lobes.equirect_directions(height, 2 * height)) @ coeffs.T
+        image = reference_sh(order, equirect_directions(height, 2 * height)) @ coeffs.T
         error = lobes.project_equirect(image, order) - coeffs
         predicted = (np.pi / height) ** 2 / 24 * (pole_integrands - coeffs)
         np.testing.assert_allclose(error, predicted, rtol=0, atol=0.01 * np.abs(predicted).max())
@@ -227,22 +238,22 @@ def test_reconstruct_then_project_tends_to_identity():
 
 def test_reconstruction_matches_reference_sh_and_handles_one_channel():
     coeffs = np.random.default_rng(6).standard_normal((2, 25))
-    truth = reference_sh(5, lobes.equirect_directions(6, 10)) @ coeffs.T
+    truth = reference_sh(5, equirect_directions(6, 10)) @ coeffs.T
     np.testing.assert_allclose(lobes.reconstruct_equirect(coeffs, 6, 10), truth, rtol=0, atol=1e-13)
     single = lobes.reconstruct_equirect(coeffs[0], 6, 10)
     np.testing.assert_allclose(single[..., 0], truth[..., 0], rtol=0, atol=1e-13)
 
 
-def test_projection_reads_only_the_requested_channels_and_chunks_consistently(monkeypatch):
+def test_projection_reads_only_rgb_and_chunks_consistently(monkeypatch):
     rng = np.random.default_rng(7)
     pixels = rng.random((24, 48, 4)).astype(np.float32)
-    whole = lobes.project_equirect(pixels, 3, channels=3)
+    whole = lobes.project_equirect(pixels, 3)
+    assert whole.shape == (3, 9)
     pixels[..., 3] = 1e6  # alpha must not leak into colour
     monkeypatch.setattr(lobes, "_CHUNK_VALUES", 48 * 9 * 5)  # 5 rows per chunk: a ragged last chunk
     # Chunks change the order of the sums: equal to rounding, relative to the largest coefficient.
-    np.testing.assert_allclose(lobes.project_equirect(pixels, 3, channels=3), whole, rtol=0,
+    np.testing.assert_allclose(lobes.project_equirect(pixels, 3), whole, rtol=0,
                                atol=1e-14 * np.abs(whole).max())
-    assert lobes.project_equirect(pixels, 3, channels=1).shape == (1, 9)
 
 
 # --- windows ----------------------------------------------------------------------------------------------------

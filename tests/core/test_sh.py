@@ -10,15 +10,12 @@ from prt_addon.core import sh
 POLES = np.array([[0.0, 0.0, 1.0], [0.0, 0.0, -1.0]])
 
 
-def test_index_band_of_and_coefficient_bands_agree():
+def test_index_and_coefficient_bands_follow_band_then_degree_order():
     order = sh.MAX_ORDER
-    ks = range(sh.num_coefficients(order))
-    pairs = [sh.band_of(k) for k in ks]
-    assert sh.num_coefficients(order) == order * order
-    assert [sh.index(l, m) for l, m in pairs] == list(ks)
-    assert all(abs(m) <= l for l, m in pairs)
+    pairs = [(l, m) for l in range(order) for m in range(-l, l + 1)]  # k = 0, 1, 2, ...: (0, 0), (1, -1), ...
+    assert [sh.index(l, m) for l, m in pairs] == list(range(order * order))
     assert sh.coefficient_bands(order).tolist() == [l for l, _ in pairs]
-    assert sh.band_of(sh.index(7, -7)) == (7, -7)
+    assert sh.index(7, -7) == 49 and sh.index(7, 7) == 63  # band 7 is k = 7² … 8² - 1
 
 
 def test_closed_form_bands_0_to_2():
