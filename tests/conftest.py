@@ -27,9 +27,19 @@ def built_zip(tmp_path_factory) -> Path:
     """The extension zip, built by Blender's own tool from this checkout."""
     out = tmp_path_factory.mktemp("build")
     subprocess.run([sys.executable, str(blender_ext_tool()), "build", "--source-dir", str(ROOT),
-                    "--output-dir", str(out)], check=True, capture_output=True, text=True)
+                    "--output-dir", str(out)], check=True, capture_output=True, text=True, timeout=300)
     (zip_path,) = out.glob("*.zip")
     return zip_path
+
+
+@pytest.fixture(scope="session")
+def sample_scene_files(tmp_path_factory) -> Path:
+    """The folder of the sample scenes, built by sample_scenes/make_scenes.py in this Blender's file format, as
+    setup.sh builds them."""
+    folder = tmp_path_factory.mktemp("sample_scenes")
+    subprocess.run([sys.executable, str(ROOT / "sample_scenes" / "make_scenes.py"), str(folder)], check=True,
+                   capture_output=True, timeout=300)
+    return folder
 
 
 @pytest.fixture(scope="session")
@@ -106,7 +116,8 @@ class FakeLayout:
 
 
 def run_cli(*args, cwd=ROOT, timeout=600):
-    """`python -m prt_addon ...` in a fresh process, as a user runs it."""
+    """`python -m prt_addon ...` in a fresh process, as a user runs it; a command that hangs fails the test
+    (subprocess.TimeoutExpired) instead of stalling the suite."""
     env = dict(os.environ, PYTHONPATH=str(ROOT))
     return subprocess.run([sys.executable, "-m", "prt_addon", *map(str, args)], cwd=cwd, env=env,
                           capture_output=True, text=True, timeout=timeout)

@@ -7,7 +7,7 @@ import bpy
 import numpy as np
 import pytest
 
-from conftest import ROOT, run_cli
+from conftest import run_cli
 from prt_addon.blender import storage
 from prt_addon.blender.scene_bake import SceneBake
 from prt_addon.core import lobes
@@ -257,20 +257,20 @@ def test_cli_help_lists_the_commands():
 
 @pytest.mark.parametrize("args, words", [
     (("bake", "no_such_file.blend"), "no such file"),
-    (("bake", ROOT / "sample_scenes" / "suzanne.blend", "--order", "11", "--output", "x.blend"), "order must be"),
-    (("bake", ROOT / "sample_scenes" / "suzanne.blend", "--objects", "Nobody"), "no object named 'Nobody'"),
+    (("bake", "{suzanne}", "--order", "11", "--output", "x.blend"), "order must be"),
+    (("bake", "{suzanne}", "--objects", "Nobody"), "no object named 'Nobody'"),
     (("frobnicate",), "invalid choice"),
 ])
-def test_cli_failures_exit_1_with_one_line(args, words):
-    result = run_cli(*args)
+def test_cli_failures_exit_1_with_one_line(args, words, sample_scene_files):
+    result = run_cli(*(arg.format(suzanne=sample_scene_files / "suzanne.blend") for arg in args))
     assert result.returncode == 1
     lines = [line for line in result.stderr.splitlines() if line.startswith("prt:")]
     assert len(lines) == 1 and words in lines[0], result.stderr
 
 
-def test_cli_bake_report_and_export(tmp_path):
+def test_cli_bake_report_and_export(tmp_path, sample_scene_files):
     out, report, npz = tmp_path / "out.blend", tmp_path / "r.json", tmp_path / "t.npz"
-    result = run_cli("bake", ROOT / "sample_scenes" / "suzanne.blend", "--objects", "Plane", "--order", "3",
+    result = run_cli("bake", sample_scene_files / "suzanne.blend", "--objects", "Plane", "--order", "3",
                      "--samples", "32", "--workers", "2", "--output", out, "--report", report)
     assert result.returncode == 0, result.stderr
     assert "left" in result.stdout and "PRT bake: 1 objects, 441 vertices" in result.stdout

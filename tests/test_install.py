@@ -12,7 +12,7 @@ from conftest import ADDON_MODULE, ROOT, blender_ext_tool
 
 def test_manifest_validates():
     result = subprocess.run([sys.executable, str(blender_ext_tool()), "validate", str(ROOT)],
-                            capture_output=True, text=True)
+                            capture_output=True, text=True, timeout=300)
     assert result.returncode == 0, result.stdout + result.stderr
 
 

@@ -10,19 +10,12 @@ from prt_addon.blender import geometry, storage
 from prt_addon.blender.scene_bake import SceneBake
 from prt_addon.core import lobes, shading
 from prt_addon.core.bake import BakeSettings
+from node_setups import principled_material
 from test_bake_blender import add_mesh, grid
 
 
 def coloured(ob, rgb, texture=None):
-    material = bpy.data.materials.new(f"{ob.name} colour")
-    material.use_nodes = True
-    principled = next(n for n in material.node_tree.nodes if n.type == "BSDF_PRINCIPLED")
-    principled.inputs["Base Color"].default_value = (*rgb, 1.0)
-    if texture is not None:
-        node = material.node_tree.nodes.new("ShaderNodeTexImage")
-        node.image = texture
-        material.node_tree.links.new(node.outputs["Color"], principled.inputs["Base Color"])
-    ob.data.materials.append(material)
+    ob.data.materials.append(principled_material(f"{ob.name} colour", rgb, texture))
     return ob
 
 

@@ -13,6 +13,8 @@ from bpy_extras.object_utils import world_to_camera_view
 from mathutils import Vector
 
 from conftest import FakeLayout, run_cli
+from equirect import equirect_directions
+from node_setups import environment_world, principled_material
 from prt_addon.blender import sample_scenes, storage
 from prt_addon.blender.scene_bake import SceneBake
 from prt_addon.core import bake, lobes, shading
@@ -116,7 +118,7 @@ def test_turned_environment_equals_projecting_the_turned_image(plane):
     plane.rotation_euler.x = 1.0  # tilted: an upward plane would see the same under any turn about Z
     update()
     bake_scene()
-    directions = lobes.equirect_directions(32, 64)
+    directions = equirect_directions(32, 64)
     pixels = np.stack([1 + directions[..., 0], 1 + 0.5 * directions[..., 1], 1 + 0.7 * directions[..., 2]], -1)
     shift = 5  # pixel columns: the turned image is exactly the shifted one
     environment = add_light("ENVIRONMENT", image=equirect_image("Env", pixels),
@@ -133,10 +135,9 @@ def test_turned_environment_equals_projecting_the_turned_image(plane):
 
 
 def test_environment_defaults_to_the_worlds_environment_texture(plane):
-    world = bpy.data.worlds.new("World")
+    world, texture = environment_world("World")
     bpy.context.scene.world = world
-    texture = world.node_tree.nodes.new("ShaderNodeTexEnvironment")
-    directions = lobes.equirect_directions(16, 32)
+    directions = equirect_directions(16, 32)
     texture.image = equirect_image("Sky", np.repeat(0.5 + 0.5 * directions[..., 2:], 3, axis=2))
     add_light("ENVIRONMENT")
     update()
@@ -439,14 +440,7 @@ def test_eevee_render_shows_prt_colour_times_albedo_texture(plane, prt, tmp_path
     albedo = (0.25, 0.5, 0.75)
     image = bpy.data.images.new("Albedo", 8, 8, float_buffer=True)  # linear: the albedo as written
     image.pixels.foreach_set(np.tile([*albedo, 1.0], 64).astype(np.float32))
-    material = bpy.data.materials.new("Textured")
-    if material.node_tree is None:
-        material.use_nodes = True
-    nodes = material.node_tree.nodes
-    texture = nodes.new("ShaderNodeTexImage")
-    texture.image = image
-    material.node_tree.links.new(texture.outputs["Color"], nodes["Principled BSDF"].inputs["Base Color"])
-    plane.data.materials.append(material)
+    plane.data.materials.append(principled_material("Textured", texture=image))
     add_light(theta=0.0, angular_radius=0.0, strength=1.5)
     scene = bpy.context.scene
     scene.prt_display.show_prt = True

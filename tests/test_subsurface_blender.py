@@ -3,6 +3,7 @@
 import bpy
 import numpy as np
 
+from node_setups import principled_material
 from prt_addon.blender import storage
 from prt_addon.blender.scene_bake import SceneBake
 from prt_addon.core import shading
@@ -21,14 +22,8 @@ def slab(name, thickness):
     quads = [(r * 11 + c, r * 11 + c + 1, (r + 1) * 11 + c + 1, (r + 1) * 11 + c) for r in range(10) for c in range(10)]
     faces = quads + [tuple(121 + i for i in reversed(q)) for q in quads]
     ob = add_mesh(name, top + bottom, faces)
-    material = bpy.data.materials.new(f"{name} wax")
-    material.use_nodes = True
-    principled = next(n for n in material.node_tree.nodes if n.type == "BSDF_PRINCIPLED")
-    principled.inputs["Base Color"].default_value = (0.8, 0.8, 0.8, 1.0)
-    principled.inputs["Subsurface Weight"].default_value = 1.0
-    principled.inputs["Subsurface Radius"].default_value = (1.0, 1.0, 1.0)
-    principled.inputs["Subsurface Scale"].default_value = MEAN_FREE_PATH
-    ob.data.materials.append(material)
+    ob.data.materials.append(principled_material(f"{name} wax", **{
+        "Subsurface Weight": 1.0, "Subsurface Radius": (1.0, 1.0, 1.0), "Subsurface Scale": MEAN_FREE_PATH}))
     return ob
 
 

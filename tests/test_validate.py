@@ -13,6 +13,7 @@ import bpy
 import numpy as np
 
 from conftest import FakeLayout, run_cli
+from node_setups import principled_material
 from prt_addon.blender import sample_scenes
 from prt_addon.blender.scene_bake import SceneBake
 from prt_addon.core import lights, lobes
@@ -78,10 +79,7 @@ def test_unshadowed_sphere_under_a_sun_agrees_with_cycles_to_one_percent(empty_s
 
 
 def coloured(ob, rgb):
-    material = bpy.data.materials.new(ob.name)
-    principled = next(node for node in material.node_tree.nodes if node.type == "BSDF_PRINCIPLED")
-    principled.inputs["Base Color"].default_value = (*rgb, 1.0)
-    ob.data.materials.append(material)
+    ob.data.materials.append(principled_material(ob.name, rgb))
     return ob
 
 

@@ -20,7 +20,7 @@ import bpy
 import numpy as np
 
 from ..core.progress import Job, Progress
-from .materials import new_node_material
+from .compat import new_node_material, new_node_world
 
 REFERENCE_ATTRIBUTE = "_prt_cycles_reference"
 ALBEDO_ATTRIBUTE = "_prt_validation_albedo"
@@ -122,14 +122,13 @@ def _prepare_scene(context, receivers, albedos, samples, created):
     scene.cycles.device = "CPU"
     scene.cycles.samples = samples
     scene.cycles.sample_clamp_indirect = 0.0  # a clamp would darken the bounced light: no bias wanted
-    world = bpy.data.worlds.new("PRT validation")
+    world = new_node_world("PRT validation")
     created.append((bpy.data.worlds, world))
-    if world.node_tree is None:  # before Blender 5.0 new worlds have no node tree
-        world.use_nodes = True
-    nodes = world.node_tree.nodes
+    nodes, links = world.node_tree.nodes, world.node_tree.links
     environment = nodes.new("ShaderNodeTexEnvironment")
-    background = next(node for node in nodes if node.type == "BACKGROUND")
-    world.node_tree.links.new(environment.outputs["Color"], background.inputs["Color"])
+    background = nodes.new("ShaderNodeBackground")
+    links.new(environment.outputs["Color"], background.inputs["Color"])
+    links.new(background.outputs["Background"], nodes.new("ShaderNodeOutputWorld").inputs["Surface"])
     scene.world = world
     material = _diffuse_material()
     created.append((bpy.data.materials, material))
@@ -215,10 +214,8 @@ def _scene_restored(context, meshes):
             for name in (REFERENCE_ATTRIBUTE, ALBEDO_ATTRIBUTE):
                 if name in attributes:
                     attributes.remove(attributes[name])
-            if active:
-                attributes.active_color_name = active
-            if default:
-                attributes.default_color_name = default
+            # Set even when empty: from Blender 5.2 removing an attribute leaves its name as the active one.
+            attributes.active_color_name, attributes.default_color_name = active, default
         for ob in layer_objects:
             ob.select_set(ob in saved["selected"])
         context.view_layer.objects.active = saved["active"]

@@ -13,6 +13,7 @@ import numpy as np
 
 from ..core import shading
 from . import materials
+from .compat import new_node_material
 
 DISPLAY_ATTRIBUTE = "prt_color"
 DISPLAY_OF_KEY = "_prt_display_of"  # on a display material: the name of the material it stands for
@@ -103,7 +104,7 @@ def display_material(original):
 
 
 def _new_display_material(name, original):
-    material = materials.new_node_material(name)
+    material = new_node_material(name)
     material[DISPLAY_OF_KEY] = original.name if original else ""
     nodes, links = material.node_tree.nodes, material.node_tree.links
     colour = nodes.new("ShaderNodeVertexColor")

@@ -18,15 +18,6 @@ DEFAULT_ALBEDO = (0.8, 0.8, 0.8)  # what Blender renders a mesh without material
 ORIGINALS_KEY = "_prt_original_materials"  # on an object: its materials' names while the display is shown
 
 
-def new_node_material(name):
-    """A new material with an empty node tree, on Blender 4.2 and 5.x alike."""
-    material = bpy.data.materials.new(name)
-    if material.node_tree is None:  # before Blender 5.0 new materials have no node tree
-        material.use_nodes = True
-    material.node_tree.nodes.clear()
-    return material
-
-
 def original_materials(ob) -> list:
     """ob's own materials per slot, also while display materials stand in for them."""
     if ORIGINALS_KEY in ob:

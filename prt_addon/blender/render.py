@@ -10,17 +10,14 @@ import time
 import bpy
 
 from ..core.errors import InputError
+from .compat import eevee_engine_id
 from .display import DISPLAY_ATTRIBUTE
 
 ENGINES = ("EEVEE", "WORKBENCH")
 
 
 def engine_id(engine: str) -> str:
-    """Blender's id: EEVEE is BLENDER_EEVEE_NEXT in 4.2-4.4 and BLENDER_EEVEE from 5.0 on."""
-    if engine == "WORKBENCH":
-        return "BLENDER_WORKBENCH"
-    ids = {item.identifier for item in bpy.types.RenderSettings.bl_rna.properties["engine"].enum_items}
-    return "BLENDER_EEVEE_NEXT" if "BLENDER_EEVEE_NEXT" in ids else "BLENDER_EEVEE"
+    return "BLENDER_WORKBENCH" if engine == "WORKBENCH" else eevee_engine_id()
 
 
 def render(scene, path, engine="EEVEE", samples=4, resolution=None) -> float:

@@ -9,6 +9,7 @@ import bpy
 
 from ..core.errors import InputError
 from . import bake, demo, export, relight, validate
+from .common import addon_registered
 
 COMMAND_ID = "prt"
 COMMANDS = {module.__name__.rsplit(".", 1)[-1]: module for module in (bake, export, relight, validate, demo)}
@@ -32,7 +33,8 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv, in_blender: bool = False) -> int:
     try:
         args = build_parser().parse_args(argv)
-        return COMMANDS[args.command].run(args, in_blender)
+        with addon_registered():
+            return COMMANDS[args.command].run(args, in_blender)
     except SystemExit as leaving:  # --help
         return int(leaving.code or 0)
     except InputError as failure:

@@ -1,6 +1,7 @@
 """What several commands share: opening the file, names from a comma list, JSON reports, logging, and the add-on's
 registration for the bpy module."""
 
+from contextlib import contextmanager
 import json
 import os
 import sys
@@ -10,12 +11,21 @@ import bpy
 from ..core.errors import InputError
 
 
-def ensure_registered():
-    """With the bpy module the add-on is not enabled: register it for this process (the scene's SH lights and
-    display switches are its properties, the relighting handlers its handlers)."""
-    if not hasattr(bpy.types.Scene, "prt_lights"):
-        from .. import register
-        register()
+@contextmanager
+def addon_registered():
+    """With the bpy module the add-on is not enabled: registers it for the body (the scene's SH lights and display
+    switches are its properties, the relighting handlers its handlers), then unregisters it, also on failure.
+    Blender 4.5's module hangs (registered classes) or crashes (a registered command) at exit otherwise. Where the
+    add-on is already enabled (a real Blender, a test session), it is left as it is."""
+    if hasattr(bpy.types.Scene, "prt_lights"):
+        yield
+        return
+    from .. import register, unregister
+    register()
+    try:
+        yield
+    finally:
+        unregister()
 
 
 def open_file(path, required: bool):

@@ -14,7 +14,7 @@ from ..blender import lights, sample_scenes
 from ..blender.relighting import Relighter
 from ..blender.scene_bake import SceneBake
 from ..core import bake
-from .common import ensure_registered, log, write_json
+from .common import log, write_json
 from .relight import relight_file
 
 SUN_IRRADIANCE = 2.0
@@ -36,7 +36,6 @@ def run(args, in_blender: bool) -> int:
 
 def demo(output: str, workers: int = 2, samples: int = 256) -> int:
     os.makedirs(output, exist_ok=True)
-    ensure_registered()
     bpy.ops.wm.read_homefile(use_empty=True)
     objects = sample_scenes.build_demo_scene()
     print(f"prt demo: built the demo scene ({', '.join(sorted(o.name for o in objects.values() if o))})")

@@ -10,7 +10,6 @@ from ..blender import lights
 from ..blender.relighting import Relighter
 from ..blender.render import ENGINES, engine_id, render
 from ..core.errors import InputError
-from .common import ensure_registered
 
 
 def add_parser(commands):
@@ -53,7 +52,6 @@ def relight_file(path, render_path, light_index=None, theta_deg=None, phi_deg=No
     """Opens `path`, aims one light (default: the active one), renders `render_path`; returns what it did."""
     if not os.path.isfile(path):
         raise InputError(f"no such file: {path}")
-    ensure_registered()
     bpy.ops.wm.open_mainfile(filepath=os.path.abspath(path), load_ui=False)
     scene = bpy.context.scene
     if not scene.prt_lights:

@@ -4,7 +4,7 @@ per object, and an optional JSON report."""
 import bpy
 
 from ..blender.validation import DEFAULT_PASSES, DEFAULT_SAMPLES, Validation
-from .common import ensure_registered, log, names, open_file, warn, write_json
+from .common import log, names, open_file, warn, write_json
 
 
 def add_parser(commands):
@@ -18,7 +18,6 @@ def add_parser(commands):
 
 
 def run(args, in_blender: bool) -> int:
-    ensure_registered()  # the scene's SH lights are add-on properties
     open_file(args.file, required=not in_blender)
     validation = Validation(bpy.context, args.samples, args.passes, names(args.objects))
     warn(validation.problems + validation.notes)
