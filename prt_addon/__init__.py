@@ -1,8 +1,8 @@
 """PRT: precomputed radiance transfer for Blender. This module only registers.
 
 Rooms: core/ (numpy maths, no bpy), blender/ (between Blender's data and the core), commands/ (the command line),
-ui/ (operators, panels, properties, handlers, overlays). The interface is imported inside register() so that the
-core and the commands import without it.
+ui/ (operators, panels, properties, handlers and overlays). The interface is imported inside register() so that
+the core and the commands import without it.
 """
 
 

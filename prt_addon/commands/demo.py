@@ -1,8 +1,9 @@
-"""`prt demo`: build the original program's demo scene, bake it, light it with SH lights, render it with EEVEE, write a report.
+"""`prt demo`: build the original program's demo scene, bake it, light it with SH lights, render it with EEVEE,
+write a report.
 
 The lights are the add-on's own: a sun following the scene's Sun object plus a constant sky. The renders go
-through `prt relight` (commands.relight.relight_file): EEVEE showing PRT colour × albedo texture, once as saved and once
-with the sun moved round to the back, so the shadows visibly follow. The report says what was done and measured.
+through `prt relight` (commands.relight.relight_file): EEVEE showing PRT colour × albedo texture, once as saved and
+once with the sun moved round to the back, so the shadows visibly follow. The report says what was done and measured.
 """
 
 import os

@@ -106,8 +106,8 @@ def interreflect(direct, albedo, operator: BounceOperator, bounces=None, toleran
 
     bounces: a count, or None for 'auto': late bounces shrink by a steady ratio r (the spectral radius of ρG),
     so the rest of the series is T_b·r/(1−r) once T_b is (nearly) an eigenvector. Iterate until the error of
-    that tail, bounded by ‖T_b − r·T_{b−1}‖ / (1−r)², is below `tolerance` of the total, then add the tail. Stopping on the last bounce's
-    size instead would leave a 10 % tail at ρ = 0.99, or take ~900 bounces to make it small.
+    that tail, bounded by ‖T_b − r·T_{b−1}‖ / (1−r)², is below `tolerance` of the total, then add the tail.
+    Stopping on the last bounce's size instead would leave a 10 % tail at ρ = 0.99, or take ~900 bounces to make it small.
     Returns the total (V, C, n²) and a BounceReport."""
     start = time.perf_counter()
     report = BounceReport()

@@ -1,4 +1,5 @@
-"""Shading a vertex is one dot product: radiance = Σ_k L_k T_k (times albedo)."""
+"""Shading a vertex is one dot product: radiance = Σ_k L_k T_k (times albedo); and the sun's direction from the
+light controls' angles and its coefficients."""
 
 import math
 

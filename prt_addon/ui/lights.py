@@ -1,5 +1,5 @@
-"""SH lights and display switches, stored in the scene; the light-driver panel in the sidebar tab "PRT". What the
-settings mean as light is blender.lights'.
+"""SH lights and display switches, stored in the scene, with their list, add and remove operators, and the Lights
+and Display panels of the sidebar tab "PRT". What the settings mean as light is blender.lights'.
 
 Every property is animatable and drivable. Each one has an update callback: Blender then tags the scene when it
 is set from Python too (not only from the UI), so the depsgraph handler sees the change.

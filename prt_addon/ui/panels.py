@@ -1,4 +1,5 @@
-"""The sidebar tab "PRT" in the 3D View."""
+"""The sidebar tab "PRT" in the 3D View: where every PRT panel lives (SidebarPanel), and the Bake panel with the
+active object's stored bake. The Lights and Display panels are in lights.py, Validation in validation.py."""
 
 import bpy
 
