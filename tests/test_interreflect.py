@@ -142,8 +142,8 @@ def test_white_floor_turns_red_beside_a_red_wall():
     red_over_green = result.transfer[:, 0, 0] / result.transfer[:, 1, 0]
     assert red_over_green[near] > 1.05 and red_over_green[near] > red_over_green[far] + 0.03
     summary = the_job.summary([result])
-    assert summary.bounces == 3 and len(summary.bounce_changes) == 3 and summary.bounces_converged  # as asked
-    assert summary.bounce_changes[0] > summary.bounce_changes[1] > summary.bounce_changes[2] > 0
+    assert summary.bounces == 3 and len(summary.bounce_relative_changes) == 3 and summary.bounces_converged  # as asked
+    assert summary.bounce_relative_changes[0] > summary.bounce_relative_changes[1] > summary.bounce_relative_changes[2] > 0
 
 
 def records_in_chunk_order(the_job):

@@ -52,7 +52,7 @@ def test_cornell_floor_turns_red_near_the_red_wall_and_green_near_the_green(empt
     sky = transfer[:, :, 0]  # under a constant sky only T_00 matters
     assert sky[near_red, 0] > 1.05 * sky[near_red, 1]
     assert sky[near_green, 1] > 1.05 * sky[near_green, 0]
-    assert summary.bounce_changes and summary.bounce_changes[0] < 1
+    assert summary.bounce_relative_changes and summary.bounce_relative_changes[0] < 1
     report = scene_bake.report().as_dict()
     assert report["bounces"] == summary.bounces and set(report["phases_s"]) >= {"rays_s", "bounces_s"}
 

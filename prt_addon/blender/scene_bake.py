@@ -61,33 +61,17 @@ class SolvedSurfaces:
 
 @dataclass
 class BakeReport:
-    """What `--report` writes and the demo's report holds."""
+    """What `--report` writes and the demo's report holds: the job's summary, with the objects by name, what was
+    not baked (problems) and what the user should know (notes)."""
+    summary: job.Summary
     objects: list
-    vertices: int
-    order: int
-    mode: str
-    samples: int
-    target_error: float
-    workers: int
-    rays: int
-    skipped_vertices: int
-    time_s: float
-    rays_per_s: float
-    est_rms_rel_error: float
-    est_max_rel_error: float
-    per_object: dict
     problems: list
     notes: list
-    phases_s: dict
-    bounces: int | None
-    bounce_relative_changes: list
-    bounce_tail: float
-    bounces_converged: bool  # False: auto bounces stopped at the bounce limit without converging
-    albedo_clamped: bool
     subsurface_objects: list
 
     def as_dict(self) -> dict:
-        return asdict(self)
+        return {**asdict(self.summary), "objects": self.objects, "problems": self.problems, "notes": self.notes,
+                "subsurface_objects": self.subsurface_objects}
 
 
 class SceneBake(Job):
@@ -178,13 +162,5 @@ class SceneBake(Job):
         return self.summary
 
     def report(self) -> BakeReport:
-        s = self.summary
-        return BakeReport(
-            objects=[ob.name for ob in self.objects], vertices=s.vertices, order=s.order, mode=s.mode,
-            samples=s.samples, target_error=s.target_error, workers=s.workers, rays=s.rays,
-            skipped_vertices=s.skipped_vertices, time_s=s.time_s, rays_per_s=s.rays_per_s,
-            est_rms_rel_error=s.est_rms_rel_error, est_max_rel_error=s.est_max_rel_error, per_object=s.per_object,
-            problems=self.problems, notes=self.notes, phases_s=s.phases, bounces=s.bounces,
-            bounce_relative_changes=s.bounce_changes, bounce_tail=s.bounce_tail,
-            bounces_converged=s.bounces_converged, albedo_clamped=s.albedo_clamped,
-            subsurface_objects=self.subsurface_objects)
+        return BakeReport(self.summary, [ob.name for ob in self.objects], self.problems, self.notes,
+                          self.subsurface_objects)

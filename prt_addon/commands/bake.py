@@ -28,11 +28,10 @@ def add_setting(parser, setting: spec.Setting):
         kind, default, shown = _whole_or_auto(setting.label.lower()), None, "auto"
     else:
         kind, default, shown = type(setting.default), setting.default, setting.default
+    limits = "" if setting.choices else f"{setting.range_text()}{' or auto' if setting.auto else ''}, "
     parser.add_argument("--" + setting.name.replace("_", "-"), type=kind, default=default,
                         choices=[identifier for identifier, _, _ in setting.choices] or None,
-                        help=f"{setting.description}; "
-                             f"{'' if setting.choices else setting.range_text() + (' or auto' if setting.auto else '') + ', '}"
-                             f"default {shown}")
+                        help=f"{setting.description}; {limits}default {shown}")
 
 
 def _whole_or_auto(what: str):

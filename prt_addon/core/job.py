@@ -47,16 +47,16 @@ class Summary:
     workers: int = 1
     target_error: float = 0.0
     per_object: dict = field(default_factory=dict)
-    phases: dict = field(default_factory=dict)     # seconds per phase: rays, gather setup, bounces
+    phases_s: dict = field(default_factory=dict)   # seconds per phase: rays, gather setup, bounces
     bounces: int | None = None                     # interreflected: bounces run
-    bounce_changes: list = field(default_factory=list)  # relative change of each bounce
+    bounce_relative_changes: list = field(default_factory=list)  # relative change of each bounce
     bounce_tail: float = 0.0                       # geometric tail added after the last bounce (auto)
     bounces_converged: bool = True                 # False: auto bounces stopped at the limit, not converged
     albedo_clamped: bool = False
 
     def line(self) -> str:
-        bounced = (f", {self.bounces} bounces in {self.phases.get('bounces_s', 0.0):.2f} s "
-                   f"(last change {self.bounce_changes[-1]:.1e})" if self.bounce_changes else "")
+        bounced = (f", {self.bounces} bounces in {self.phases_s.get('bounces_s', 0.0):.2f} s "
+                   f"(last change {self.bounce_relative_changes[-1]:.1e})" if self.bounce_relative_changes else "")
         if not self.bounces_converged:
             bounced += f"; auto bounces NOT converged: stopped at the limit of {self.bounces} bounces"
         return (f"PRT bake: {self.objects} objects, {self.vertices} vertices, order {self.order} {self.mode}: "
@@ -287,9 +287,9 @@ class TransferJob(Job):
             time_s=elapsed, rays_per_s=rays / elapsed if elapsed > 0 else 0.0,
             est_rms_rel_error=rms(rel), est_max_rel_error=float(rel.max(initial=0.0)),
             workers=self.workers, target_error=self.settings.target_error, per_object=per_object,
-            phases=dict(self.phase_times),
+            phases_s=dict(self.phase_times),
             bounces=self.bounce_report.bounces if self.bounce_report else None,
-            bounce_changes=list(self.bounce_report.relative_changes) if self.bounce_report else [],
+            bounce_relative_changes=list(self.bounce_report.relative_changes) if self.bounce_report else [],
             bounce_tail=self.bounce_report.tail if self.bounce_report else 0.0,
             bounces_converged=self.bounce_report.converged if self.bounce_report else True,
             albedo_clamped=bool(self.bounce_report and self.bounce_report.albedo_clamped))
