@@ -2,12 +2,16 @@
 
 import json
 import math
+import os
+import signal
+import subprocess
+import sys
 
 import bpy
 import numpy as np
 import pytest
 
-from conftest import run_cli
+from conftest import ROOT, run_cli
 from prt_addon.blender import storage
 from prt_addon.blender.scene_bake import SceneBake
 from prt_addon.core import lobes
@@ -266,6 +270,27 @@ def test_cli_failures_exit_1_with_one_line(args, words, sample_scene_files):
     assert result.returncode == 1
     lines = [line for line in result.stderr.splitlines() if line.startswith("prt:")]
     assert len(lines) == 1 and words in lines[0], result.stderr
+
+
+def test_cli_bake_interrupted_exits_1_with_one_line_and_leaves_the_file(tmp_path, sample_scene_files):
+    """Ctrl+C (or a farm's SIGINT) during a bake with forked workers: exit 1, one line, the file as it was."""
+    path = tmp_path / "suzanne.blend"
+    path.write_bytes((sample_scene_files / "suzanne.blend").read_bytes())
+    before = path.read_bytes()
+    command = [sys.executable, "-m", "prt_addon", "bake", str(path), "--samples", "16384", "--workers", "2"]
+    process = subprocess.Popen(command, cwd=ROOT, env=dict(os.environ, PYTHONPATH=str(ROOT)),
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        for line in process.stdout:  # the bake is under way once it reports progress
+            if "left" in line:
+                break
+        process.send_signal(signal.SIGINT)
+        _, stderr = process.communicate(timeout=120)
+    finally:
+        process.kill()
+    errors = [line for line in stderr.splitlines() if line.startswith("prt: error")]
+    assert process.returncode == 1 and errors == ["prt: error: cancelled; nothing was written"], stderr
+    assert path.read_bytes() == before
 
 
 def test_cli_bake_report_and_export(tmp_path, sample_scene_files):

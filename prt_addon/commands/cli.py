@@ -37,6 +37,9 @@ def main(argv, in_blender: bool = False) -> int:
             return COMMANDS[args.command].run(args, in_blender)
     except SystemExit as leaving:  # --help
         return int(leaving.code or 0)
+    except KeyboardInterrupt:  # Ctrl+C or a farm's SIGINT: nothing is saved before the work is done
+        print("prt: error: cancelled; nothing was written", file=sys.stderr)
+        return 1
     except InputError as failure:
         print(f"prt: error: {failure}", file=sys.stderr)
         return 1
