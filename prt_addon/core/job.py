@@ -190,8 +190,11 @@ class TransferJob(Job):
                     else:
                         started = SpawnedWorker(job_file.worker_process_command(self.worker_command, saved_job,
                                                                                 out_file, theirs))
-                    threading.Thread(target=read_lines, args=(started.stdout, lines), daemon=True).start()
                     workers.append((started, out_file))
+                # Reader threads start after the last fork: a child has none of our threads, and a lock one of them
+                # held at the fork would stay locked in the child forever
+                for started, _ in workers:
+                    threading.Thread(target=read_lines, args=(started.stdout, lines), daemon=True).start()
                 if shared_queue is not None:
                     shared_queue.fill()
                 caster = caster or bake.RayCaster(self.occluders)  # spawned workers start meanwhile
