@@ -11,10 +11,11 @@ import math
 
 import bpy
 import numpy as np
+import pytest
 
 from conftest import FakeLayout, run_cli
 from node_setups import principled_material
-from prt_addon.blender import sample_scenes
+from prt_addon.blender import sample_scenes, storage
 from prt_addon.blender.scene_bake import SceneBake
 from prt_addon.core import lights, lobes
 from prt_addon.core.bake import BakeSettings
@@ -52,8 +53,8 @@ def test_demo_scene_shadowed_at_default_settings_agrees_with_cycles(empty_scene,
     Four Cycles passes of 32 samples with different seeds give the noise of their mean from their spread (per
     vertex the passes' variance ÷ 4); summed over 13,575 vertices that estimate is good to about 1 % of itself, so
     PRT's error is sqrt(measured² − noise²) without a high-sample render, which would take minutes. Measured: PRT
-    1.04 % (torus 0.9 %, floor and walls 1.3-1.5 %, higher along the seams where walls meet the floor), Cycles'
-    noise 0.97 %, measured 1.42 %; with 4 × 128 samples, Cycles' noise 0.32 %, PRT's error is 1.01 %."""
+    0.78 % (torus 0.64 %, floor and walls 0.85-1.16 %), Cycles' noise 0.97 %, measured 1.24 %, p99 3.8 % (the
+    floor's 5.2 %); with 4 × 128 samples, Cycles' noise 0.32 %, PRT's error is 0.74 %, p99 3.0 %."""
     sample_scenes.build_demo_scene()
     bake()
     add_windowed_sun_over_sky(empty_scene)
@@ -64,6 +65,7 @@ def test_demo_scene_shadowed_at_default_settings_agrees_with_cycles(empty_scene,
     assert overall.error <= 0.02, validation.lines(comparisons)
     assert all(c.error <= 0.03 for c in comparisons), validation.lines(comparisons)
     assert 0.0 < overall.cycles_noise < overall.measured
+    assert overall.error < overall.p99 <= 0.06, validation.lines(comparisons)
 
 
 def test_unshadowed_sphere_under_a_sun_agrees_with_cycles_to_one_percent(empty_scene, prt):
@@ -165,6 +167,8 @@ def test_the_panel_button_validates_stores_the_result_and_restores_the_scene_exa
     assert_same_state(before)
     result = bpy.context.window_manager.prt_validation
     assert [entry.name for entry in result.compared] == ["Floor", "all"]
+    assert result.worst_object == "Floor" and len(result.worst_vertices.split(", ")) == 5
+    assert all(entry.p99 > 0 for entry in result.compared)
     assert result.cycles_s > 0 and result.light.startswith("Scene light")
     assert "'Box' has no PRT bake" in result.notes  # selected, but nothing to compare
     drawn = []
@@ -192,12 +196,31 @@ def test_a_ringing_light_is_measured_and_reported_and_the_default_light_does_not
         assert lobes.reconstruct_equirect(lights.default_light(order), 64, 128).min() > 0.2
 
 
+def raise_dc_transfer(mesh, amounts: dict):
+    """Adds amounts[v] × the mean DC transfer coefficient to vertex v's: PRT's colour there gains amounts[v] ×
+    albedo · L₀ · mean T₀ (about the mean colour) whatever Cycles sees, so these vertices' errors rank as the
+    amounts do, far above everything else's."""
+    (name, *_) = storage.coefficient_attribute_names(4)
+    values = np.empty(len(mesh.vertices) * 3, dtype=np.float32)
+    mesh.attributes[name].data.foreach_get("vector", values)
+    values = values.reshape(-1, 3)
+    mean_dc = values[:, 0].mean()
+    for vertex, amount in amounts.items():
+        values[vertex, 0] += amount * mean_dc
+    mesh.attributes[name].data.foreach_set("vector", values.ravel())
+
+
 def test_validate_command_writes_a_line_and_json_and_fails_in_one_line(empty_scene, tmp_path):
-    grid("Floor")
+    """Five of the floor's vertices have their transfer spoiled by known amounts: the report must name the floor
+    as the worst object and list those five, worst first, where they are in the world."""
+    floor = grid("Floor")
+    floor.location = (0.25, -0.5, 0.0)  # world positions differ from the mesh's
     box("Cube")
     path, report = tmp_path / "baked.blend", tmp_path / "validation.json"
     bpy.ops.wm.save_as_mainfile(filepath=str(tmp_path / "unbaked.blend"))
     bake(samples=32)
+    spoiled = {40: 5.0, 12: 4.0, 66: 3.0, 8: 2.0, 77: 1.0}  # 40, under the cube, the worst
+    raise_dc_transfer(floor.data, spoiled)
     bpy.ops.wm.save_as_mainfile(filepath=str(path))
     result = run_cli("validate", path, "--samples", 4, "--passes", 2, "--report", report)
     assert result.returncode == 0, result.stderr
@@ -209,7 +232,20 @@ def test_validate_command_writes_a_line_and_json_and_fails_in_one_line(empty_sce
     assert data["cycles"]["passes"] == 2 and data["cycles"]["time_s"] > 0 and data["prt"]["bake_time_s"] > 0
     for name in ("Floor", "Cube"):
         assert set(data["per_object"][name]) >= {"rel_rms_error", "measured_rel_rms", "cycles_noise_rel_rms",
-                                                 "rel_max_difference", "est_rms_rel_error", "bake_time_s"}
+                                                 "rel_p99_error", "measured_rel_p99", "rel_max_difference",
+                                                 "est_rms_rel_error", "bake_time_s"}
+    assert 0.0 < data["rel_p99_error"] <= data["measured_rel_p99"] <= data["rel_max_difference"]
+    worst, floor_errors = data["worst"], data["per_object"]["Floor"]
+    assert worst["object"] == "Floor" and [v["index"] for v in worst["vertices"]] == list(spoiled)
+    errors = [v["rel_error"] for v in worst["vertices"]]
+    # The worst vertex's error, Cycles' noise taken out, is the floor's largest difference less a little noise.
+    assert 0.9 * floor_errors["rel_max_difference"] <= errors[0] <= floor_errors["rel_max_difference"]
+    # 81 vertices: numpy's linear 99th percentile lies at rank 0.99 × 80 = 79.2, between the two worst.
+    assert floor_errors["rel_p99_error"] == pytest.approx(0.8 * errors[1] + 0.2 * errors[0], rel=1e-9)
+    corners = np.array([v.co for v in floor.data.vertices])[list(spoiled)] + np.array(floor.location)
+    np.testing.assert_allclose([v["position"] for v in worst["vertices"]], corners, atol=1e-6)
+    assert f"  worst: Floor, p99 {100 * floor_errors['rel_p99_error']:.1f} %; vertices 40 (" in result.stdout
+    assert "; vertex 40 at (0.25, -0.50, 0.00)" in result.stdout
     for args, words in (((tmp_path / "unbaked.blend",), "nothing to validate"),
                         ((path, "--passes", 1), "passes must be at least 2")):
         failed = run_cli("validate", *args)

@@ -5,7 +5,8 @@ PRT with a light band-limited to the bake's order is exact up to Monte Carlo noi
 Cycles lit by the SH-reconstructed environment must agree with it. The light is the scene's SH lights, summed and
 windowed as the display shows them (core.lights.default_light when there are none). Cycles' noise, measured from
 the spread of its passes, is taken out of the measured difference: the two noises are independent, so their
-squares add (core.statistics).
+squares add (core.statistics), in the RMS and vertex by vertex, for the 99th percentile and the worst vertices.
+The report names the object with the largest p99 and where its worst vertices are (indices and world positions).
 """
 
 from dataclasses import asdict, dataclass
@@ -16,7 +17,7 @@ import numpy as np
 from ..core import lights, lobes, shading
 from ..core.errors import InputError
 from ..core.progress import Job
-from ..core.statistics import clamped_fraction, compare
+from ..core.statistics import clamped_fraction, compare, worst_object
 from . import geometry, materials, storage
 from .cycles import CyclesReference, LightGroup, rendered_meshes
 from .lights import scene_lights
@@ -51,7 +52,10 @@ class ValidationReport:
     rel_rms_error: float
     measured_rel_rms: float
     cycles_noise_rel_rms: float
+    rel_p99_error: float
+    measured_rel_p99: float
     rel_max_difference: float
+    worst: dict  # {"object": name, "vertices": [{"index", "rel_error", "position"}, ...]}
     cycles: dict
     prt: dict
     light: dict
@@ -74,6 +78,7 @@ class Validation(Job):
             raise InputError(f"passes must be at least 2 (Cycles' noise is measured from their spread), "
                                        f"not {passes}")
         context.view_layer.update()
+        self.context = context  # as CyclesReference keeps it, for where the worst vertices are
         self.problems: list[str] = []  # one sentence per object that is not validated
         self.notes: list[str] = []     # validated, but the user should know
         self.receivers = self._receivers(context, object_names)  # (object, bake metadata)
@@ -159,7 +164,28 @@ class Validation(Job):
                    f"({self.cycles.passes} × {self.cycles.samples} samples): {overall.text()}; "
                    f"PRT bake {self.bake_time_s():.1f} s, shading {1000 * self.shade_time_s:.0f} ms, "
                    f"Cycles {self.cycles.time_s:.1f} s; {light}, {100 * max(self.clamped.values()):.2f} % clamped")
-        return [summary] + [f"  {c.name}: {c.text()}" for c in comparisons[:-1]]
+        return [summary] + [f"  {c.name}: {c.text()}" for c in comparisons[:-1]] + [self.worst_line(comparisons)]
+
+    def worst_line(self, comparisons) -> str:
+        """The worst object, its worst vertices' indices and errors, and where the worst one is."""
+        worst = self.worst(comparisons)
+        p99 = next(c.p99 for c in comparisons[:-1] if c.name == worst["object"])
+        vertices = ", ".join(f"{v['index']} ({100 * v['rel_error']:.1f} %)" for v in worst["vertices"])
+        first = worst["vertices"][0]
+        return (f"  worst: {worst['object']}, p99 {100 * p99:.1f} %; vertices {vertices}; vertex {first['index']} "
+                f"at ({', '.join(f'{x:.2f}' for x in first['position'])})")
+
+    def worst(self, comparisons) -> dict:
+        """The object with the largest p99 (core.statistics.worst_object) and its worst vertices, largest error
+        first: index, error (relative to the RMS of the object's Cycles colours, Cycles' noise taken out) and
+        world position, as the viewport shows it."""
+        found = worst_object(comparisons[:-1])
+        ob = next(ob for ob, _ in self.receivers if ob.name == found.name)
+        indices = [index for index, _ in found.worst]
+        positions = world_positions(self.context, ob, indices)
+        return {"object": found.name,
+                "vertices": [{"index": index, "rel_error": error, "position": [float(x) for x in position]}
+                             for (index, error), position in zip(found.worst, positions)]}
 
     def report(self, comparisons) -> ValidationReport:
         metadata = {ob.name: meta for ob, meta in self.receivers}
@@ -174,7 +200,20 @@ class Validation(Job):
                    "description": None if self.scene_light else lights.DEFAULT_LIGHT,
                    "clamped_fraction": {str(order): share for order, share in self.clamped.items()}},
             per_object={c.name: {**c.as_dict(), **_bake_facts(metadata[c.name])} for c in comparisons[:-1]},
+            worst=self.worst(comparisons),
             notes=self.notes, problems=self.problems)
+
+
+def world_positions(context, ob, indices) -> np.ndarray:
+    """World positions (N, 3) of the object's vertices `indices` on its evaluated mesh, which the bake and Cycles
+    saw (the original mesh's, if its modifiers have since changed the vertex count)."""
+    evaluated = ob.evaluated_get(context.evaluated_depsgraph_get())
+    mesh = evaluated.to_mesh()
+    try:
+        positions = geometry.mesh_positions(mesh if len(mesh.vertices) == len(ob.data.vertices) else ob.data)
+    finally:
+        evaluated.to_mesh_clear()
+    return geometry.points_to_world(np.array(evaluated.matrix_world), positions[np.asarray(indices, dtype=int)])
 
 
 def _bake_facts(meta) -> dict:

@@ -24,11 +24,14 @@ class PRT_PG_compared(bpy.types.PropertyGroup):
     vertices: IntProperty()
     error: FloatProperty()
     cycles_noise: FloatProperty()
+    p99: FloatProperty()  # 99th percentile of the per-vertex error, Cycles' noise taken out
 
 
 class PRT_PG_validation_result(bpy.types.PropertyGroup):
     """The last validation, for the panel (window-manager level: never saved)."""
     compared: CollectionProperty(type=PRT_PG_compared)  # per object, then "all"
+    worst_object: StringProperty()    # the object with the largest p99
+    worst_vertices: StringProperty()  # its worst vertices' indices, worst first, comma-separated
     prt_bake_s: FloatProperty()
     cycles_s: FloatProperty()
     light: StringProperty()
@@ -67,7 +70,10 @@ def store_result(result, validation, comparisons):
         entry = result.compared.add()
         entry.name = comparison.name
         entry.vertices = comparison.vertices
-        entry.error, entry.cycles_noise = comparison.error, comparison.cycles_noise
+        entry.error, entry.cycles_noise, entry.p99 = comparison.error, comparison.cycles_noise, comparison.p99
+    worst = validation.worst(comparisons)
+    result.worst_object = worst["object"]
+    result.worst_vertices = ", ".join(str(vertex["index"]) for vertex in worst["vertices"])
     result.prt_bake_s = validation.bake_time_s()
     result.cycles_s = validation.cycles.time_s
     clamped = 100 * max(validation.clamped.values())
@@ -97,11 +103,13 @@ class PRT_PT_validate(SidebarPanel, bpy.types.Panel):
         if not result.compared:
             return
         column = layout.column(align=True)
-        column.label(text="RMS error against Cycles (its noise taken out):")
+        column.label(text="Error against Cycles, RMS and p99 (its noise taken out):")
         for entry in result.compared:
             row = column.row()
             row.label(text=f"{entry.name} ({entry.vertices} vertices)")
-            row.label(text=f"{100 * entry.error:.2f} %  (noise {100 * entry.cycles_noise:.2f} %)")
+            row.label(text=f"{100 * entry.error:.2f} %, p99 {100 * entry.p99:.1f} %  "
+                           f"(noise {100 * entry.cycles_noise:.2f} %)")
+        column.label(text=f"Worst: {result.worst_object}, vertices {result.worst_vertices}", icon="VERTEXSEL")
         column.label(text=f"PRT bake {result.prt_bake_s:.1f} s, Cycles {result.cycles_s:.1f} s")
         column.label(text=result.light)
         for note in result.notes.splitlines():
