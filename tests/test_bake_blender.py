@@ -207,7 +207,7 @@ def _shared_mesh():
 @pytest.mark.parametrize("make_bad, words", [
     (_faceless, "has no faces"),
     (_non_finite, "non-finite"),
-    (_topology_modifier, "modifiers change the vertex count"),
+    (_topology_modifier, "modifiers change the vertex or face corner count"),
     (_shared_mesh, "shares its mesh"),
 ])
 def test_bad_object_is_named_and_others_still_bake(empty_scene, make_bad, words):

@@ -7,6 +7,7 @@ import bpy
 import numpy as np
 import pytest
 
+from prt_addon.blender import storage
 from prt_addon.blender.scene_bake import SceneBake
 from prt_addon.core import bake, lobes, sh, workers
 from prt_addon.core.bake import BakeSettings
@@ -51,8 +52,8 @@ def transfer_facing_a_square(facing, distance, half_size, order=4):
     return (weights * np.maximum(along, 0.0) * ~hits) @ sh.evaluate(order, directions) / np.pi
 
 
-def test_vertex_on_a_concave_crease_sees_the_quarter_space(empty_scene):
-    # Floor (z = 0, y ≥ 0) and wall (y = 0, z ≥ 0) share their edge along x: one mesh, smooth normals at the crease.
+def concave_crease():
+    """Floor (z = 0, y ≥ 0) and wall (y = 0, z ≥ 0) sharing their edge along x: one mesh, flat-shaded."""
     ticks = np.linspace(-2.0, 2.0, 9)
     floor = [(x, y, 0.0) for y in np.linspace(0.0, 4.0, 9) for x in ticks]
     wall = [(x, 0.0, z) for z in np.linspace(0.5, 4.0, 8) for x in ticks]
@@ -60,7 +61,12 @@ def test_vertex_on_a_concave_crease_sees_the_quarter_space(empty_scene):
     faces = [(r * 9 + c, r * 9 + c + 1, (r + 1) * 9 + c + 1, (r + 1) * 9 + c) for r in range(8) for c in range(8)]
     wall_rows = [list(range(9))] + [[81 + r * 9 + c for c in range(9)] for r in range(8)]
     faces += [(a[c + 1], a[c], b[c], b[c + 1]) for a, b in zip(wall_rows, wall_rows[1:]) for c in range(8)]
-    ob = add_mesh("Crease", vertices, faces)
+    return add_mesh("Crease", vertices, faces)
+
+
+def test_vertex_on_a_smooth_concave_crease_sees_the_quarter_space(empty_scene):
+    ob = concave_crease()
+    ob.data.shade_smooth()  # one normal at the crease, averaged between the faces
     bake_objects(["Crease"], samples=4096)
     transfer, _ = transfer_of(ob)
     crease_vertex = 4  # (0, 0, 0)
@@ -70,6 +76,29 @@ def test_vertex_on_a_concave_crease_sees_the_quarter_space(empty_scene):
     error = np.abs(transfer[crease_vertex] - expected)
     assert np.isfinite(transfer).all()
     assert np.linalg.norm(error) < 5 * std_error_of(ob)[crease_vertex] * bake.unshadowed_norm(4) + 2e-3
+
+
+def test_flat_concave_crease_splits_into_the_floors_and_the_walls_point_each_seeing_the_quarter_space(empty_scene):
+    """Flat-shaded, the crease's vertices are shaded with the floor's normal on the floor and the wall's on the
+    wall, as Blender shades (and Cycles bakes) them: one transfer each, stored per face corner."""
+    ob = concave_crease()
+    bake_objects(["Crease"], samples=4096)
+    transfer, meta = transfer_of(ob)
+    corner_points = storage.corner_points_of(ob.data)
+    assert meta["domain"] == "CORNER" and meta["split_vertices"] == 9 and meta["points"] == len(ob.data.vertices) + 9
+    assert len(transfer) == meta["points"] and np.isfinite(transfer).all()
+    crease_vertex = 4  # (0, 0, 0)
+    corners = [loop.index for loop in ob.data.loops if loop.vertex_index == crease_vertex]
+    face_of_corner = {corner: face.normal for face in ob.data.polygons for corner in face.loop_indices}
+    seen = set()
+    for corner in corners:
+        point = corner_points[corner]
+        normal = np.array(face_of_corner[corner])
+        expected = quarter_space_transfer(normal)
+        assert np.linalg.norm(transfer[point] - expected) < 0.02 * np.linalg.norm(expected), normal
+        seen.add((point, tuple(np.round(normal, 6))))
+    assert {normal for _, normal in seen} == {(0.0, 0.0, 1.0), (0.0, 1.0, 0.0)}
+    assert len({point for point, _ in seen}) == 2
 
 
 def test_coplanar_overlapping_faces_do_not_shadow_each_other(empty_scene):

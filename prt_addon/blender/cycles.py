@@ -49,20 +49,23 @@ class LightGroup:
 
 
 class CyclesReference(Job):
-    """Cycles' diffuse radiance × albedo at the receivers' vertices: per light group, `passes` bakes of `samples`
-    each with different seeds. step() runs one bake; the scene is restored after the last one or on cancel()."""
+    """Cycles' diffuse radiance × albedo at the receivers' vertices, or at their face corners for the objects in
+    `per_corner` (Cycles evaluates every corner with its own normal and, for a vertex attribute, averages them):
+    per light group, `passes` bakes of `samples` each with different seeds. step() runs one bake; the scene is
+    restored after the last one or on cancel()."""
 
-    def __init__(self, context, groups: list, albedos: dict, samples: int, passes: int):
+    def __init__(self, context, groups: list, albedos: dict, samples: int, passes: int, per_corner=frozenset()):
         self.context = context
         self.groups = groups
         self.albedos = albedos  # every rendered mesh object → (V, 3)
         self.samples = samples
         self.passes = passes
-        self.radiance = {ob.name: [] for group in groups for ob in group.objects}  # (V, 3) per pass
+        self.per_corner = per_corner
+        self.radiance = {ob.name: [] for group in groups for ob in group.objects}  # (V or C, 3) per pass
         self.time_s = 0.0
         self.progress = Progress("PRT validate")
         self._work = self._all_passes()
-        self._total_vertices = passes * sum(len(ob.data.vertices) for group in groups for ob in group.objects)
+        self._total_vertices = passes * sum(self._rows(ob) for group in groups for ob in group.objects)
         self._done_vertices = 0
         self.finished = False
 
@@ -75,10 +78,14 @@ class CyclesReference(Job):
     def cancel(self):
         self._work.close()  # leaves the `with` below: the scene is restored
 
+    def _rows(self, ob) -> int:
+        return len(ob.data.loops) if ob.name in self.per_corner else len(ob.data.vertices)
+
     def _all_passes(self):
         receivers = [ob for group in self.groups for ob in group.objects]
         with _scene_restored(self.context, list(self.albedos)) as created:
-            environment = _prepare_scene(self.context, receivers, self.albedos, self.samples, created)
+            environment = _prepare_scene(self.context, receivers, self.albedos, self.samples, created,
+                                         self.per_corner)
             first = True
             for group in self.groups:
                 image = environment_image(group.environment)
@@ -106,14 +113,14 @@ class CyclesReference(Job):
                             | (set() if group.indirect_only else {"DIRECT"}))
         self.time_s += time.perf_counter() - start
         for ob in group.objects:
-            values = np.empty(len(ob.data.vertices) * 4, dtype=np.float32)
+            values = np.empty(self._rows(ob) * 4, dtype=np.float32)
             ob.data.color_attributes[REFERENCE_ATTRIBUTE].data.foreach_get("color", values)
             self.radiance[ob.name].append(values.reshape(-1, 4)[:, :3].astype(np.float64))
-            self._done_vertices += len(ob.data.vertices)
+            self._done_vertices += self._rows(ob)
         self.progress.fraction = self._done_vertices / max(1, self._total_vertices)
 
 
-def _prepare_scene(context, receivers, albedos, samples, created):
+def _prepare_scene(context, receivers, albedos, samples, created, per_corner):
     """Cycles on the CPU, a World showing an environment texture (returned, its image set per light group), a
     Diffuse BSDF coloured by its per-vertex albedo on every rendered mesh, what the bake does not see hidden, and
     a colour attribute to bake into on each receiver."""
@@ -144,7 +151,7 @@ def _prepare_scene(context, receivers, albedos, samples, created):
         ob.hide_render = True
     for ob in receivers:
         attributes = ob.data.color_attributes
-        attributes.new(REFERENCE_ATTRIBUTE, "FLOAT_COLOR", "POINT")
+        attributes.new(REFERENCE_ATTRIBUTE, "FLOAT_COLOR", "CORNER" if ob.name in per_corner else "POINT")
         attributes.active_color = attributes[REFERENCE_ATTRIBUTE]  # what a vertex-colour bake writes
     return environment
 

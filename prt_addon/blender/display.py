@@ -21,26 +21,30 @@ ALBEDO_MIX = "PRT Albedo"  # the Mix node whose factor is the albedo switch
 
 
 # -- colours ----------------------------------------------------------------------------------------------------
-def write_display_colours(mesh, transfer: np.ndarray, light: np.ndarray):
-    """Σ_k L_k T_k for transfer (V, n²) or (V, 3, n²) and light (3, n²) into a FLOAT_COLOR point attribute,
-    alpha 1.
+def write_display_colours(mesh, transfer: np.ndarray, light: np.ndarray, corner_points=None):
+    """Σ_k L_k T_k for transfer (P, n²) or (P, 3, n²) and light (3, n²) into a FLOAT_COLOR attribute, alpha 1:
+    one product per shading point, written per vertex (POINT), or per face corner through `corner_points` (C,)
+    where the bake is per corner.
 
     Negative values, which a ringing light gives, are clamped to black."""
     alpha_free = np.vstack([light, np.zeros((1, light.shape[1]))])  # a zero row: shade() fills four columns
     rgba = shading.shade(transfer, alpha_free)
     rgba[:, 3] = 1.0
     np.maximum(rgba, 0.0, out=rgba)
-    _colour_attribute(mesh).data.foreach_set("color", rgba.ravel())
+    domain = "POINT" if corner_points is None else "CORNER"
+    if corner_points is not None:
+        rgba = rgba[corner_points]
+    _colour_attribute(mesh, domain).data.foreach_set("color", rgba.ravel())
     mesh.update_tag()  # a depsgraph tag only: no context needed, so it is safe from a render's frame handler
 
 
-def _colour_attribute(mesh):
+def _colour_attribute(mesh, domain):
     existing = mesh.color_attributes.get(DISPLAY_ATTRIBUTE)
-    if existing is not None and (existing.data_type, existing.domain) != ("FLOAT_COLOR", "POINT"):
-        mesh.color_attributes.remove(existing)  # someone else's layer of that name: ours is recomputed anyway
+    if existing is not None and (existing.data_type, existing.domain) != ("FLOAT_COLOR", domain):
+        mesh.color_attributes.remove(existing)  # another layout's or someone else's: ours is recomputed anyway
         existing = None
     if existing is None:
-        mesh.color_attributes.new(DISPLAY_ATTRIBUTE, "FLOAT_COLOR", "POINT")
+        mesh.color_attributes.new(DISPLAY_ATTRIBUTE, "FLOAT_COLOR", domain)
         # The active colour is what Workbench's Attribute colour shows.
         mesh.color_attributes.active_color = mesh.color_attributes[DISPLAY_ATTRIBUTE]
     # Look it up again by name: adding a layer can invalidate earlier references.

@@ -6,7 +6,7 @@ from dataclasses import dataclass
 import bpy
 import numpy as np
 
-from ..core import bake
+from ..core import bake, corners
 from ..core.errors import InputError
 from . import materials
 
@@ -24,11 +24,29 @@ def mesh_vertex_normals(mesh) -> np.ndarray:
     return normals.reshape(-1, 3)
 
 
-def mesh_triangles(mesh) -> np.ndarray:
+def mesh_triangles(mesh, of: str = "vertices") -> np.ndarray:
+    """(T, 3) the triangles' vertices, or with of="loops" their face corners."""
     mesh.calc_loop_triangles()
     triangles = np.empty(len(mesh.loop_triangles) * 3, dtype=np.int32)
-    mesh.loop_triangles.foreach_get("vertices", triangles)
+    mesh.loop_triangles.foreach_get(of, triangles)
     return triangles.reshape(-1, 3)
+
+
+def mesh_corner_vertices(mesh) -> np.ndarray:
+    corner_vertices = np.empty(len(mesh.loops), dtype=np.int64)
+    mesh.loops.foreach_get("vertex_index", corner_vertices)
+    return corner_vertices
+
+
+def mesh_corner_normals(mesh) -> np.ndarray:
+    """(C, 3) the normal Blender shades each face corner with (flat faces, sharp edges, custom normals)."""
+    normals = np.empty(len(mesh.loops) * 3, dtype=np.float64)
+    mesh.corner_normals.foreach_get("vector", normals)
+    return normals.reshape(-1, 3)
+
+
+def mesh_shading_points(mesh) -> corners.ShadingPoints:
+    return corners.shading_points(mesh_corner_vertices(mesh), mesh_corner_normals(mesh), len(mesh.vertices))
 
 
 def points_to_world(matrix, points: np.ndarray) -> np.ndarray:
@@ -78,18 +96,23 @@ def check_writable(ob):
 # -- surfaces -------------------------------------------------------------------------------------------------
 @dataclass
 class Surface:
-    """A mesh object's evaluated surface in world space, as the bake sees it."""
+    """A mesh object's evaluated surface in world space, as the bake sees it: one receiver row per shading point
+    (core.corners: the vertices, then the further corner normals of split vertices)."""
     receiver: bake.Receiver
-    triangles: np.ndarray        # (T, 3) indices into the receiver's vertices
-    albedo: np.ndarray | None    # (V, 3) linear base colour per vertex, when asked for
+    triangles: np.ndarray        # (T, 3) indices into the receiver's points
+    albedo: np.ndarray | None    # (P, 3) linear base colour per point, when asked for
+    corner_points: np.ndarray | None = None  # (C,) each face corner's point; None: the points are the vertices
+    split_vertices: int = 0
 
 
 def surface_from_object(ob, depsgraph, notes: list, for_storage: bool = True, albedo: bool = False) -> Surface:
-    """World-space positions and normals of the evaluated mesh, validated vertex by vertex.
+    """World-space positions and normals of the evaluated mesh's shading points, validated point by point.
 
+    Each point is shaded with its corner normal, as Blender shades it; a vertex whose corners share one normal
+    is one point (with exactly the vertex normal where they agree, so smooth meshes bake as they always did).
     for_storage: the result will be written to this object's mesh, so it must be writable and keep its
-    vertex count through its modifiers. Vertices without a surface (loose, or only on zero-area faces) get zero
-    transfer and a note in `notes`."""
+    vertex and corner counts through its modifiers. Vertices without a surface (loose, or only on zero-area
+    faces) get zero transfer and a note in `notes`."""
     mesh = ob.data
     if for_storage:
         check_writable(ob)
@@ -98,20 +121,29 @@ def surface_from_object(ob, depsgraph, notes: list, for_storage: bool = True, al
     evaluated = ob.evaluated_get(depsgraph)
     eval_mesh = evaluated.to_mesh()
     try:
-        if for_storage and len(eval_mesh.vertices) != len(mesh.vertices):
+        if for_storage and (len(eval_mesh.vertices), len(eval_mesh.loops)) != (len(mesh.vertices), len(mesh.loops)):
             raise InputError(
-                f"{ob.name!r}: its modifiers change the vertex count ({len(mesh.vertices)} → "
-                f"{len(eval_mesh.vertices)}); apply them or disable them in the viewport to bake")
+                f"{ob.name!r}: its modifiers change the vertex or face corner count ({len(mesh.vertices)} → "
+                f"{len(eval_mesh.vertices)} vertices, {len(mesh.loops)} → {len(eval_mesh.loops)} corners); "
+                f"apply them or disable them in the viewport to bake")
         positions = mesh_positions(eval_mesh)
         if not np.isfinite(positions).all():
             bad = int((~np.isfinite(positions).all(1)).sum())
             raise InputError(f"{ob.name!r} has {bad} vertices with non-finite (NaN or infinite) coordinates")
-        normals = mesh_vertex_normals(eval_mesh)
-        triangles = mesh_triangles(eval_mesh)
+        points = mesh_shading_points(eval_mesh)
+        split = points.extra_points > 0
+        vertex_normals = mesh_vertex_normals(eval_mesh)
+        normals = points.point_normals
+        own = normals[: len(vertex_normals)]  # the vertices' own points: the vertex normal where it is theirs
+        same = np.all(np.abs(own - vertex_normals) <= 10.0 ** -corners.NORMAL_DECIMALS, axis=1)
+        own[same] = vertex_normals[same]
+        positions = positions[points.point_vertices]
+        triangles = points.corner_points[mesh_triangles(eval_mesh, of="loops")].astype(np.int32)
         used = np.zeros(len(positions), dtype=bool)
         used[_face_vertices_with_area(triangles, positions)] = True
         towards_faces = _towards_faces(triangles, positions)
-        colours = materials.vertex_albedo(ob, eval_mesh, notes) if albedo else None
+        colours = (materials.vertex_albedo(ob, eval_mesh, notes, points.corner_points, len(positions))
+                   if albedo else None)
     finally:
         evaluated.to_mesh_clear()
     matrix = np.array(ob.matrix_world, dtype=np.float64)
@@ -128,7 +160,7 @@ def surface_from_object(ob, depsgraph, notes: list, for_storage: bool = True, al
         notes.append(f"{ob.name!r}: {int((~usable).sum())} vertices are loose or only on zero-area faces; "
                      f"they get zero transfer")
     receiver = bake.Receiver(ob.name, world_positions, world_normals, bake.Receiver.key_for(ob.name), inward)
-    return Surface(receiver, triangles, colours)
+    return Surface(receiver, triangles, colours, points.corner_points if split else None, points.split_vertices)
 
 
 def _towards_faces(triangles: np.ndarray, positions: np.ndarray) -> np.ndarray:

@@ -88,11 +88,13 @@ def subsurface_material(ob):
     return None
 
 
-# -- albedo per vertex ----------------------------------------------------------------------------------------
-def vertex_albedo(ob, mesh, notes: list) -> np.ndarray:
+# -- albedo per vertex or shading point -----------------------------------------------------------------------
+def vertex_albedo(ob, mesh, notes: list, corner_points=None, point_count=None) -> np.ndarray:
     """(V, 3) linear albedo per vertex of `mesh` (the object's mesh or its evaluated mesh): each face corner's base
-    colour, averaged over the corners of each vertex."""
+    colour, averaged over the corners of each vertex; or (P, 3) per shading point, given each corner's point."""
     corner_vertex = _corner_vertices(mesh)
+    groups = corner_vertex if corner_points is None else corner_points
+    count = len(mesh.vertices) if corner_points is None else point_count
     face_material = np.empty(len(mesh.polygons), dtype=np.int64)
     mesh.polygons.foreach_get("material_index", face_material)
     face_sizes = np.empty(len(mesh.polygons), dtype=np.int64)
@@ -103,11 +105,11 @@ def vertex_albedo(ob, mesh, notes: list) -> np.ndarray:
         corners = corner_material == slot_index
         if material is not None and corners.any():
             corner_colour[corners] = _material_colours(ob, mesh, material, notes)[corners]
-    total = np.zeros((len(mesh.vertices), 3))
+    total = np.zeros((count, 3))
     for channel in range(3):
-        total[:, channel] = np.bincount(corner_vertex, corner_colour[:, channel], minlength=len(mesh.vertices))
-    count = np.bincount(corner_vertex, minlength=len(mesh.vertices))[:, None]
-    return np.where(count > 0, total / np.maximum(count, 1), np.array(DEFAULT_ALBEDO))
+        total[:, channel] = np.bincount(groups, corner_colour[:, channel], minlength=count)
+    corners = np.bincount(groups, minlength=count)[:, None]
+    return np.where(corners > 0, total / np.maximum(corners, 1), np.array(DEFAULT_ALBEDO))
 
 
 def _corner_vertices(mesh) -> np.ndarray:

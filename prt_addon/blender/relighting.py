@@ -25,7 +25,8 @@ class Relighter:
     def forget(self):
         """Caches are by name: a newly loaded file starts afresh."""
         self._light_cache = core_lights.LightCache()
-        self._transfers = {}  # mesh name → (bake key, (V, n²) float32 transfer, None for a stale bake)
+        # mesh name → (bake key, ((P, n²) float32 transfer, corner points or None), or None for a stale bake)
+        self._transfers = {}
         self._shaded = {}     # mesh name → (bake key, light bytes) of the colours it holds
         self._reported = set()  # messages already printed
 
@@ -66,15 +67,16 @@ class Relighter:
         return self._transfers.get(mesh.name_full, (None,))[0] != _bake_key(mesh)
 
     def _receivers(self, scene):
-        """(object, transfer) for each mesh object of the scene with a usable bake."""
+        """(object, (transfer, corner points)) for each mesh object of the scene with a usable bake."""
         for ob in scene.objects:
             if ob.type == "MESH" and not ob.data.is_editmode:
-                transfer = self._transfer(ob.data)
-                if transfer is not None:
-                    yield ob, transfer
+                baked = self._transfer(ob.data)
+                if baked is not None:
+                    yield ob, baked
 
     def _transfer(self, mesh):
-        """The mesh's transfer, read once per bake; a stale bake is reported once and never applied."""
+        """The mesh's transfer and corner points, read once per bake; a stale bake is reported once and never
+        applied."""
         key = _bake_key(mesh)
         if key is None:
             self._transfers.pop(mesh.name_full, None)
@@ -83,12 +85,12 @@ class Relighter:
         if cached is not None and cached[0] == key:
             return cached[1]
         try:
-            transfer, _ = storage.read_transfer(mesh)
+            baked = storage.read_transfer(mesh)[0], storage.corner_points_of(mesh)
         except StaleBake as problem:
-            transfer = None
+            baked = None
             self._report_once(f"PRT: not relighting: {problem}")
-        self._transfers[mesh.name_full] = (key, transfer)
-        return transfer
+        self._transfers[mesh.name_full] = (key, baked)
+        return baked
 
     def _report_once(self, message):
         if message not in self._reported:
@@ -97,26 +99,26 @@ class Relighter:
 
     def _shade(self, receivers, settings):
         """Sums the lights once per SH order, then writes the colours of each mesh whose light or bake changed."""
-        orders = {math.isqrt(transfer.shape[-1]) for _, transfer in receivers}
+        orders = {math.isqrt(transfer.shape[-1]) for _, (transfer, _) in receivers}
         for entry in settings.prt_lights:
             if entry.use and entry.kind == "ENVIRONMENT" and environment_image(entry, settings) is None:
                 self._report_once(f"PRT: SH light {entry.name!r} has no readable image (missing file?); "
                                   f"it does not shine")
         totals = self._light_cache.totals(scene_lights(settings), orders, settings.prt_display.window)
-        for ob, transfer in receivers:
+        for ob, (transfer, corner_points) in receivers:
             light = totals[math.isqrt(transfer.shape[-1])]
             state = (_bake_key(ob.data), light.tobytes())
             if self._shaded.get(ob.data.name_full) != state:
-                display.write_display_colours(ob.data, transfer, light)
+                display.write_display_colours(ob.data, transfer, light, corner_points)
                 self._shaded[ob.data.name_full] = state
 
 
 def _bake_key(mesh):
-    """What identifies a bake: its unique id, and the vertex counts then and now."""
+    """What identifies a bake: its unique id, the vertex counts then and now, and the corner count now."""
     meta = mesh.get(storage.METADATA_KEY)
     if meta is None:
         return None
-    return meta.get("bake_id"), meta.get("vertex_count"), len(mesh.vertices)
+    return meta.get("bake_id"), meta.get("vertex_count"), len(mesh.vertices), len(mesh.loops)
 
 
 def _sync_display(scene, receivers, settings):

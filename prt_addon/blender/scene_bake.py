@@ -148,18 +148,28 @@ class SceneBake(Job):
         """Writes every receiver's transfer (replacing older bakes) and returns the summary."""
         results = self.job.results()[: len(self.surfaces.receivers)]  # bouncers are not stored
         self.summary = self.job.summary(results)
+        self._count_vertices()
         self.subsurface_objects = []
         for ob, surface, result in zip(self.objects, self.surfaces.receivers, results):
             material = materials.subsurface_material(ob) if self.settings.mode != "unshadowed" else None
             if material is not None:
                 result.transfer = with_subsurface(surface, result.transfer, *material)
                 self.subsurface_objects.append(ob.name)
-        for ob, result in zip(self.objects, results):
+        for ob, surface, result in zip(self.objects, self.surfaces.receivers, results):
             extra = {"time_s": self.summary.time_s}
             if self.summary.bounces is not None:
                 extra["bounces"] = self.summary.bounces
-            storage.write_transfer(ob, result, extra, self.settings)
+            storage.write_transfer(ob, result, extra, self.settings, surface.corner_points, surface.split_vertices)
         return self.summary
+
+    def _count_vertices(self):
+        """The summary in mesh vertices, with the shading points they were split into (core.corners)."""
+        for ob, surface in zip(self.objects, self.surfaces.receivers):
+            self.summary.per_object[ob.name].update(
+                vertices=len(ob.data.vertices), points=len(surface.receiver.positions),
+                split_vertices=surface.split_vertices)
+        self.summary.vertices = sum(entry["vertices"] for entry in self.summary.per_object.values())
+        self.summary.split_vertices = sum(entry["split_vertices"] for entry in self.summary.per_object.values())
 
     def report(self) -> BakeReport:
         return BakeReport(self.summary, [ob.name for ob in self.objects], self.problems, self.notes,

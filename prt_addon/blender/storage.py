@@ -1,13 +1,17 @@
 """The stored layout: a bake's transfer attributes and metadata on a mesh, written, read back and removed.
 
 Stored layout (documented in the README; bump core.bake.CONVENTION_VERSION when it changes):
-- POINT-domain FLOAT_VECTOR attributes `_prt_t00`, `_prt_t01`, ... each holding 3 consecutive SH
-  coefficients (k = 3j, 3j+1, 3j+2; the last one zero-padded). The leading `_` lets glTF export them.
-  Coloured (interreflected) transfer has one such set per channel: `_prt_r00`..., `_prt_g00`..., `_prt_b00`....
-- POINT-domain FLOAT attribute `_prt_error`: per-vertex estimated relative standard error.
-- Mesh custom property `prt` (a group): order, mode, samples, rays, convention, vertex_count,
-  est_rms_rel_error, est_max_rel_error, time_s, date, bake_id, seed, target_error, skipped_vertices, channels
-  (and bounces for interreflected bakes).
+- FLOAT_VECTOR attributes `_prt_t00`, `_prt_t01`, ... each holding 3 consecutive SH coefficients (k = 3j, 3j+1,
+  3j+2; the last one zero-padded). The leading `_` lets glTF export them. Coloured (interreflected) transfer has
+  one such set per channel: `_prt_r00`..., `_prt_g00`..., `_prt_b00`....
+- FLOAT attribute `_prt_error`: the estimated relative standard error.
+- Their domain: POINT, one row per vertex, where every vertex is one shading point (core.corners), as in
+  convention 2; CORNER, one row per face corner, where some vertex is split by its corner normals, with the INT
+  CORNER attribute `_prt_point` giving each corner's shading point (corners of one point hold equal rows).
+- Mesh custom property `prt` (a group): order, mode, samples, rays, convention, domain, vertex_count,
+  corner_count, points, split_vertices, est_rms_rel_error, est_max_rel_error, time_s, date, bake_id, seed,
+  target_error, skipped_vertices, channels (and bounces for interreflected bakes).
+Convention 2 files (POINT only, no domain) still read.
 """
 
 from datetime import datetime, timezone
@@ -21,7 +25,9 @@ from ..core.errors import StaleBake
 
 ATTRIBUTE_PREFIX = "_prt_"
 ERROR_ATTRIBUTE = "_prt_error"
+POINT_ATTRIBUTE = "_prt_point"
 METADATA_KEY = "prt"
+READABLE_CONVENTIONS = (2, bake.CONVENTION_VERSION)  # 2: POINT domain only, no `domain` key
 
 
 CHANNEL_LETTERS = {1: "t", 3: "rgb"}
@@ -38,22 +44,30 @@ def _channel_planes(transfer: np.ndarray) -> list[tuple[str, np.ndarray]]:
     return list(zip(CHANNEL_LETTERS[transfer.shape[1]], transfer.transpose(1, 0, 2)))
 
 
-def write_transfer(ob, result, summary_fields: dict, settings: bake.BakeSettings):
-    """Replaces any previous bake on the object's mesh: attributes first, metadata last."""
+def write_transfer(ob, result, summary_fields: dict, settings: bake.BakeSettings, corner_points=None,
+                   split_vertices: int = 0):
+    """Replaces any previous bake on the object's mesh: attributes first, metadata last. `result` holds one row per
+    shading point; `corner_points` (C,) each corner's point where vertices are split (CORNER domain), else None."""
     mesh = ob.data
     remove_transfer(mesh)
     order = settings.order
+    domain = "POINT" if corner_points is None else "CORNER"
+    rows = slice(None) if corner_points is None else corner_points
     planes = _channel_planes(result.transfer)
     for letter, plane in planes:
         names = coefficient_attribute_names(order, letter)
-        padded = np.zeros((len(mesh.vertices), 3 * len(names)), dtype=np.float32)
+        padded = np.zeros((len(plane), 3 * len(names)), dtype=np.float32)
         padded[:, : order * order] = plane
+        padded = padded[rows]
         for j, name in enumerate(names):
-            mesh.attributes.new(name, "FLOAT_VECTOR", "POINT")
+            mesh.attributes.new(name, "FLOAT_VECTOR", domain)
             # Look the attribute up by name again: adding attributes can invalidate earlier references.
             mesh.attributes[name].data.foreach_set("vector", np.ascontiguousarray(padded[:, 3 * j: 3 * j + 3]).ravel())
-    mesh.attributes.new(ERROR_ATTRIBUTE, "FLOAT", "POINT")
-    mesh.attributes[ERROR_ATTRIBUTE].data.foreach_set("value", result.rel_error.astype(np.float32))
+    mesh.attributes.new(ERROR_ATTRIBUTE, "FLOAT", domain)
+    mesh.attributes[ERROR_ATTRIBUTE].data.foreach_set("value", result.rel_error[rows].astype(np.float32))
+    if corner_points is not None:
+        mesh.attributes.new(POINT_ATTRIBUTE, "INT", "CORNER")
+        mesh.attributes[POINT_ATTRIBUTE].data.foreach_set("value", corner_points.astype(np.int32))
     mesh[METADATA_KEY] = {
         "order": order,
         "mode": settings.mode,
@@ -62,7 +76,11 @@ def write_transfer(ob, result, summary_fields: dict, settings: bake.BakeSettings
         "target_error": settings.target_error,
         "seed": settings.seed,
         "convention": bake.CONVENTION_VERSION,
+        "domain": domain,
         "vertex_count": len(mesh.vertices),
+        "corner_count": len(mesh.loops),
+        "points": len(result.rel_error),
+        "split_vertices": split_vertices,
         "rays": int(result.rays.sum()),
         "skipped_vertices": int(result.skipped.sum()),
         "est_rms_rel_error": rms(result.rel_error),
@@ -82,28 +100,56 @@ def remove_transfer(mesh):
 
 
 def read_transfer(mesh) -> tuple[np.ndarray, dict]:
-    """(V, n²) grey or (V, 3, n²) coloured float32 transfer and the metadata; raises StaleBake when it no
-    longer fits the mesh."""
+    """(P, n²) grey or (P, 3, n²) coloured float32 transfer per shading point (the vertices, unless the bake is
+    per corner: see corner_points) and the metadata; raises StaleBake when it no longer fits the mesh."""
+    meta = _metadata(mesh)
+    order, letters = meta["order"], CHANNEL_LETTERS[meta.get("channels", 1)]
+    corner_points = corner_points_of(mesh)
+    planes = [_read_plane(mesh, order, letter, corner_points, meta.get("points")) for letter in letters]
+    return (planes[0] if len(planes) == 1 else np.ascontiguousarray(np.stack(planes, axis=1))), meta
+
+
+def corner_points_of(mesh) -> np.ndarray | None:
+    """(C,) each face corner's shading point where the bake is per corner, else None (one point per vertex)."""
+    meta = _metadata(mesh)
+    if meta.get("domain", "POINT") == "POINT":
+        return None
+    if POINT_ATTRIBUTE not in mesh.attributes:
+        raise StaleBake(f"mesh {mesh.name!r} lost its PRT attribute {POINT_ATTRIBUTE}; rebake it")
+    corner_points = np.empty(len(mesh.loops), dtype=np.int32)
+    mesh.attributes[POINT_ATTRIBUTE].data.foreach_get("value", corner_points)
+    return corner_points
+
+
+def _metadata(mesh) -> dict:
     if METADATA_KEY not in mesh:
         raise StaleBake(f"mesh {mesh.name!r} has no PRT bake")
     meta = mesh[METADATA_KEY].to_dict()
-    if meta.get("convention") != bake.CONVENTION_VERSION:
+    if meta.get("convention") not in READABLE_CONVENTIONS:
         raise StaleBake(f"mesh {mesh.name!r} was baked with layout version {meta.get('convention')}; rebake it")
     if meta["vertex_count"] != len(mesh.vertices):
         raise StaleBake(f"mesh {mesh.name!r} was baked with {meta['vertex_count']} vertices but now has "
                         f"{len(mesh.vertices)}; rebake it")
-    order, letters = meta["order"], CHANNEL_LETTERS[meta.get("channels", 1)]
-    planes = [_read_plane(mesh, order, letter) for letter in letters]
-    return (planes[0] if len(planes) == 1 else np.ascontiguousarray(np.stack(planes, axis=1))), meta
+    if meta.get("domain") == "CORNER" and meta["corner_count"] != len(mesh.loops):
+        raise StaleBake(f"mesh {mesh.name!r} was baked with {meta['corner_count']} face corners but now has "
+                        f"{len(mesh.loops)}; rebake it")
+    return meta
 
 
-def _read_plane(mesh, order, letter) -> np.ndarray:
+def _read_plane(mesh, order, letter, corner_points, point_count) -> np.ndarray:
+    """(rows, n²): per vertex, or per point from the first corner of each (zero for a loose vertex's point)."""
     names = coefficient_attribute_names(order, letter)
     missing = [n for n in names if n not in mesh.attributes]
     if missing:
         raise StaleBake(f"mesh {mesh.name!r} lost its PRT attributes {', '.join(missing)}; rebake it")
-    columns = np.empty((len(names), len(mesh.vertices) * 3), dtype=np.float32)
+    count = len(mesh.vertices) if corner_points is None else len(mesh.loops)
+    columns = np.empty((len(names), count * 3), dtype=np.float32)
     for j, name in enumerate(names):
         mesh.attributes[name].data.foreach_get("vector", columns[j])
-    transfer = columns.reshape(len(names), -1, 3).transpose(1, 0, 2).reshape(len(mesh.vertices), -1)
-    return np.ascontiguousarray(transfer[:, : order * order])
+    transfer = columns.reshape(len(names), -1, 3).transpose(1, 0, 2).reshape(count, -1)[:, : order * order]
+    if corner_points is None:
+        return np.ascontiguousarray(transfer)
+    points, first_corner = np.unique(corner_points, return_index=True)
+    rows = np.zeros((point_count, order * order), dtype=np.float32)
+    rows[points] = transfer[first_corner]
+    return rows

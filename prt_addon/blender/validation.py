@@ -104,7 +104,11 @@ class Validation(Job):
         for ob, meta in self.receivers:
             key = (meta["order"], meta.get("bounces") if meta["mode"] == INTERREFLECTED_MODE else None)
             groups.setdefault(key, LightGroup([], environments[key[0]], key[1])).objects.append(ob)
-        self.cycles = CyclesReference(context, list(groups.values()), self.albedos, samples, passes)
+        per_corner = {ob.name for ob, meta in self.receivers if meta.get("domain") == "CORNER"}
+        if per_corner:
+            self.notes.append(f"{', '.join(map(repr, sorted(per_corner)))}: baked per face corner (vertices split "
+                              f"by their corner normals), so compared with Cycles corner by corner")
+        self.cycles = CyclesReference(context, list(groups.values()), self.albedos, samples, passes, per_corner)
         self.shade_time_s = 0.0
 
     def _receivers(self, context, object_names):
@@ -144,11 +148,21 @@ class Validation(Job):
         colours = []
         for ob, meta in self.receivers:
             transfer, _ = storage.read_transfer(ob.data)
-            colours.append(prt_colours(transfer, self.lights[meta["order"]], self.albedos[ob]))
+            corner_points = storage.corner_points_of(ob.data)
+            if corner_points is None:
+                colours.append(prt_colours(transfer, self.lights[meta["order"]], self.albedos[ob]))
+            else:  # per face corner, as Cycles baked it
+                corner_albedo = self.albedos[ob][geometry.mesh_corner_vertices(ob.data)]
+                colours.append(prt_colours(transfer[corner_points], self.lights[meta["order"]], corner_albedo))
         self.shade_time_s = time.perf_counter() - start
         passes = [np.stack(self.cycles.radiance[ob.name]) for ob, _ in self.receivers]
         return ([compare(ob.name, prt, cycles) for (ob, _), prt, cycles in zip(self.receivers, colours, passes)]
                 + [compare("all", np.concatenate(colours), np.concatenate(passes, axis=1))])
+
+    @property
+    def vertices(self) -> int:
+        """The receivers' mesh vertices (compared per vertex, or per face corner where baked per corner)."""
+        return sum(len(ob.data.vertices) for ob, _ in self.receivers)
 
     def bake_time_s(self) -> float:
         """Seconds of the bakes validated. Objects baked together store the same date and time, which tell one
@@ -160,7 +174,7 @@ class Validation(Job):
         """The summary line, then one line per object."""
         overall = comparisons[-1]
         light = "scene light" if self.scene_light else "default light"
-        summary = (f"PRT validate: {len(self.receivers)} objects, {overall.vertices} vertices vs Cycles "
+        summary = (f"PRT validate: {len(self.receivers)} objects, {self.vertices} vertices vs Cycles "
                    f"({self.cycles.passes} × {self.cycles.samples} samples): {overall.text()}; "
                    f"PRT bake {self.bake_time_s():.1f} s, shading {1000 * self.shade_time_s:.0f} ms, "
                    f"Cycles {self.cycles.time_s:.1f} s; {light}, {100 * max(self.clamped.values()):.2f} % clamped")
@@ -170,20 +184,23 @@ class Validation(Job):
         """The worst object, its worst vertices' indices and errors, and where the worst one is."""
         worst = self.worst(comparisons)
         p99 = next(c.p99 for c in comparisons[:-1] if c.name == worst["object"])
-        vertices = ", ".join(f"{v['index']} ({100 * v['rel_error']:.1f} %)" for v in worst["vertices"])
+        kind, kinds = ("vertex", "vertices") if worst["domain"] == "POINT" else ("corner", "corners")
+        rows = ", ".join(f"{v['index']} ({100 * v['rel_error']:.1f} %)" for v in worst["vertices"])
         first = worst["vertices"][0]
-        return (f"  worst: {worst['object']}, p99 {100 * p99:.1f} %; vertices {vertices}; vertex {first['index']} "
+        return (f"  worst: {worst['object']}, p99 {100 * p99:.1f} %; {kinds} {rows}; {kind} {first['index']} "
                 f"at ({', '.join(f'{x:.2f}' for x in first['position'])})")
 
     def worst(self, comparisons) -> dict:
-        """The object with the largest p99 (core.statistics.worst_object) and its worst vertices, largest error
-        first: index, error (relative to the RMS of the object's Cycles colours, Cycles' noise taken out) and
-        world position, as the viewport shows it."""
+        """The object with the largest p99 (core.statistics.worst_object) and its worst vertices (face corners
+        where its bake is per corner: `domain`), largest error first: index, error (relative to the RMS of the
+        object's Cycles colours, Cycles' noise taken out) and world position, as the viewport shows it."""
         found = worst_object(comparisons[:-1])
-        ob = next(ob for ob, _ in self.receivers if ob.name == found.name)
+        ob, meta = next((ob, meta) for ob, meta in self.receivers if ob.name == found.name)
         indices = [index for index, _ in found.worst]
-        positions = world_positions(self.context, ob, indices)
-        return {"object": found.name,
+        domain = meta.get("domain", "POINT")
+        vertices = indices if domain == "POINT" else geometry.mesh_corner_vertices(ob.data)[indices]
+        positions = world_positions(self.context, ob, vertices)
+        return {"object": found.name, "domain": domain,
                 "vertices": [{"index": index, "rel_error": error, "position": [float(x) for x in position]}
                              for (index, error), position in zip(found.worst, positions)]}
 
@@ -192,7 +209,7 @@ class Validation(Job):
         overall = comparisons[-1].as_dict()
         del overall["vertices"]
         return ValidationReport(
-            objects=[ob.name for ob, _ in self.receivers], vertices=comparisons[-1].vertices, **overall,
+            objects=[ob.name for ob, _ in self.receivers], vertices=self.vertices, **overall,
             cycles={"samples": self.cycles.samples, "passes": self.cycles.passes, "device": "CPU",
                     "time_s": self.cycles.time_s},
             prt={"bake_time_s": self.bake_time_s(), "shade_time_s": self.shade_time_s},

@@ -1,4 +1,5 @@
-"""`prt export`: one object's bake as a .npz for use outside Blender."""
+"""`prt export`: one object's bake as a .npz for use outside Blender: per shading point (the vertices, then the
+further corner normals of split vertices), with each face corner's point where the bake is per corner."""
 
 import json
 
@@ -22,12 +23,23 @@ def run(args, in_blender: bool) -> int:
     ob = bpy.data.objects.get(args.object)
     if ob is None or ob.type != "MESH":
         raise InputError(f"no mesh object named {args.object!r} in {args.file}")
-    transfer, meta = storage.read_transfer(ob.data)
+    mesh = ob.data
+    transfer, meta = storage.read_transfer(mesh)
+    corner_points = storage.corner_points_of(mesh)
+    point_vertices = np.arange(len(transfer))
+    normals = np.zeros((len(transfer), 3))
+    normals[: len(mesh.vertices)] = geometry.mesh_vertex_normals(mesh)
+    per_corner = {}
+    if corner_points is not None:
+        point_vertices[corner_points] = geometry.mesh_corner_vertices(mesh)
+        normals[corner_points] = geometry.mesh_corner_normals(mesh)
+        per_corner = {"corner_points": corner_points, "corner_vertices": geometry.mesh_corner_vertices(mesh)}
     matrix = np.array(ob.matrix_world, dtype=np.float64)
-    local = geometry.mesh_positions(ob.data)
-    normals = geometry.directions_to_world(matrix, geometry.mesh_vertex_normals(ob.data))
-    np.savez(args.npz, positions=geometry.points_to_world(matrix, local), normals=normals, local_positions=local,
-             matrix_world=matrix, transfer=transfer.reshape(len(local), -1, transfer.shape[-1]),
-             metadata=np.array(json.dumps(meta)))
-    print(f"prt: wrote {args.npz}: {len(local)} vertices, order {meta['order']}, {meta['mode']}")
+    local = geometry.mesh_positions(mesh)[point_vertices]
+    np.savez(args.npz, positions=geometry.points_to_world(matrix, local),
+             normals=geometry.directions_to_world(matrix, normals), local_positions=local, matrix_world=matrix,
+             transfer=transfer.reshape(len(local), -1, transfer.shape[-1]), point_vertices=point_vertices,
+             metadata=np.array(json.dumps(meta)), **per_corner)
+    split = f" ({meta.get('split_vertices', 0)} split: {len(local)} points)" if corner_points is not None else ""
+    print(f"prt: wrote {args.npz}: {len(mesh.vertices)} vertices{split}, order {meta['order']}, {meta['mode']}")
     return 0

@@ -38,8 +38,9 @@ REPLICATE_VALUES_AT_ONCE = 1 << 22
 # float32 rounding because the geometry is recentred on the scene's bounding box before the BVH is built.
 OFFSET_FRACTION = 1e-5
 # Version of the stored layout and conventions; bump when either changes (2: ray origins also move towards
-# the inside of each vertex's faces, so a vertex on a seam is seen from its own side).
-CONVENTION_VERSION = 2
+# the inside of each vertex's faces, so a vertex on a seam is seen from its own side; 3: a vertex split by its
+# corner normals is baked once per normal and stored per face corner, see blender/storage.py).
+CONVENTION_VERSION = 3
 
 
 @dataclass

@@ -34,7 +34,7 @@ class ReceiverResult:
 @dataclass
 class Summary:
     objects: int
-    vertices: int
+    vertices: int           # the points baked; the scene bake counts mesh vertices and split ones
     order: int
     mode: str
     samples: int
@@ -53,13 +53,17 @@ class Summary:
     bounce_tail: float = 0.0                       # geometric tail added after the last bounce (auto)
     bounces_converged: bool = True                 # False: auto bounces stopped at the limit, not converged
     albedo_clamped: bool = False
+    split_vertices: int = 0  # vertices baked once per distinct corner normal
+    points: int = 0          # shading points baked: the vertices and the split vertices' further normals
 
     def line(self) -> str:
         bounced = (f", {self.bounces} bounces in {self.phases_s.get('bounces_s', 0.0):.2f} s "
                    f"(last change {self.bounce_relative_changes[-1]:.1e})" if self.bounce_relative_changes else "")
         if not self.bounces_converged:
             bounced += f"; auto bounces NOT converged: stopped at the limit of {self.bounces} bounces"
-        return (f"PRT bake: {self.objects} objects, {self.vertices} vertices, order {self.order} {self.mode}: "
+        split = (f" ({self.split_vertices} split by their corner normals: {self.points} points)"
+                 if self.split_vertices else "")
+        return (f"PRT bake: {self.objects} objects, {self.vertices} vertices{split}, order {self.order} {self.mode}: "
                 f"{self.time_s:.2f} s, {self.rays} rays, {self.rays_per_s / 1e3:.0f} k rays/s, "
                 f"{self.skipped_vertices} vertices exact without rays, "
                 f"est. RMS rel. error {self.est_rms_rel_error:.4f}, max {self.est_max_rel_error:.4f}{bounced}")
@@ -284,7 +288,8 @@ class TransferJob(Job):
             for receiver, result in zip(self.receivers, results)
         }
         return Summary(
-            objects=len(results), vertices=int(len(rel)), order=self.settings.order, mode=self.settings.mode,
+            objects=len(results), vertices=int(len(rel)), points=int(len(rel)), order=self.settings.order,
+            mode=self.settings.mode,
             samples=self.settings.samples, rays=rays,
             skipped_vertices=int(sum(int(r.skipped.sum()) for r in results)),
             time_s=elapsed, rays_per_s=rays / elapsed if elapsed > 0 else 0.0,

@@ -21,12 +21,14 @@ _normals = {}  # object name → (matrix and vertex count, segments): meshes do 
 
 
 def normal_segments(ob) -> np.ndarray:
-    """(2k, 3) float32 world-space line ends: each drawn vertex, then that vertex plus its scaled normal."""
+    """(2k, 3) float32 world-space line ends: each drawn shading point's vertex, then that plus its scaled normal:
+    the corner normals Blender shades with, one line per distinct normal of a vertex (core.corners)."""
     mesh = ob.data
-    step = math.ceil(len(mesh.vertices) / MAX_NORMALS_PER_OBJECT)
+    points = geometry.mesh_shading_points(mesh)
+    step = math.ceil(len(points.point_vertices) / MAX_NORMALS_PER_OBJECT)
     matrix = np.array(ob.matrix_world, dtype=np.float64)
-    starts = geometry.points_to_world(matrix, geometry.mesh_positions(mesh)[::step])
-    directions = geometry.directions_to_world(matrix, geometry.mesh_vertex_normals(mesh)[::step])
+    starts = geometry.points_to_world(matrix, geometry.mesh_positions(mesh)[points.point_vertices[::step]])
+    directions = geometry.directions_to_world(matrix, points.point_normals[::step])
     length = NORMAL_LENGTH * np.linalg.norm(np.ptp(starts, axis=0)) if len(starts) else 0.0
     return np.stack([starts, starts + length * directions], axis=1).reshape(-1, 3).astype(np.float32)
 

@@ -1,0 +1,54 @@
+"""Shading points: the face corners of a mesh grouped by the normal Blender shades them with.
+
+Blender shades each face corner with its corner normal (flat faces, sharp edges, custom normals and Smooth by
+Angle give a vertex's corners different normals), and Cycles evaluates a vertex-colour bake corner by corner. A
+vertex whose corners share one normal is one point; a vertex whose corners have k distinct normals is k points,
+each seen from its own faces. Points 0..V-1 are the vertices themselves (with the normal of their first corner),
+points V.. the further normals of split vertices, so a mesh without splits has exactly its vertices as points.
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+
+# Normals are compared after rounding to this many decimals: corner normals Blender computes for one smooth fan are
+# the same floats, and custom normals are stored quantised, so this only absorbs float32 round-off.
+NORMAL_DECIMALS = 5
+
+
+@dataclass
+class ShadingPoints:
+    corner_points: np.ndarray  # (C,) the point of each face corner
+    point_vertices: np.ndarray  # (P,) the vertex of each point; the first V are 0..V-1
+    point_normals: np.ndarray   # (P, 3) the corner normal each point is shaded with
+
+    @property
+    def split_vertices(self) -> int:
+        """How many vertices have more than one point."""
+        return len(np.unique(self.point_vertices[len(self.point_vertices) - self.extra_points:]))
+
+    @property
+    def extra_points(self) -> int:
+        return len(self.point_vertices) - int(self.point_vertices.max(initial=-1)) - 1
+
+
+def shading_points(corner_vertices: np.ndarray, corner_normals: np.ndarray, vertex_count: int) -> ShadingPoints:
+    """Groups corners (C,) with normals (C, 3) into points; a vertex without corners keeps a zero normal."""
+    rounded = np.round(np.asarray(corner_normals, dtype=np.float64), NORMAL_DECIMALS) + 0.0  # -0.0 → 0.0
+    keys = np.column_stack([corner_vertices.astype(np.float64), rounded])
+    groups, first_corner, group_of_corner = np.unique(keys, axis=0, return_index=True, return_inverse=True)
+    group_of_corner = group_of_corner.ravel()
+    group_vertex = groups[:, 0].astype(np.int64)
+    # Each vertex's group holding its lowest corner becomes the vertex's own point; the other groups follow.
+    order = np.lexsort((first_corner, group_vertex))
+    primary = np.zeros(len(groups), dtype=bool)
+    primary[order[np.r_[True, group_vertex[order][1:] != group_vertex[order][:-1]]]] = True
+    point_of_group = np.empty(len(groups), dtype=np.int64)
+    point_of_group[primary] = group_vertex[primary]
+    extra = np.flatnonzero(~primary)
+    extra = extra[np.argsort(first_corner[extra], kind="stable")]
+    point_of_group[extra] = vertex_count + np.arange(len(extra))
+    point_vertices = np.concatenate([np.arange(vertex_count), group_vertex[extra]])
+    point_normals = np.zeros((len(point_vertices), 3))
+    point_normals[point_of_group] = np.asarray(corner_normals, dtype=np.float64)[first_corner]
+    return ShadingPoints(point_of_group[group_of_corner], point_vertices, point_normals)

@@ -1,0 +1,45 @@
+"""Shading points from face corners, against meshes whose corner normals are known by construction."""
+
+import numpy as np
+
+from prt_addon.core.corners import shading_points
+
+# A unit cube, flat-shaded: 8 vertices, 6 quads, 24 corners; each vertex touches 3 faces with 3 normals.
+CUBE_FACES = {(0, 0, -1): (0, 2, 3, 1), (0, 0, 1): (4, 5, 7, 6), (0, -1, 0): (0, 1, 5, 4),
+              (0, 1, 0): (2, 6, 7, 3), (-1, 0, 0): (0, 4, 6, 2), (1, 0, 0): (1, 3, 7, 5)}
+
+
+def flat_cube():
+    corner_vertices = np.array([v for face in CUBE_FACES.values() for v in face])
+    corner_normals = np.array([normal for normal, face in CUBE_FACES.items() for _ in face], dtype=float)
+    return corner_vertices, corner_normals
+
+
+def test_a_flat_cube_has_three_points_per_vertex_each_with_its_faces_normal():
+    corner_vertices, corner_normals = flat_cube()
+    points = shading_points(corner_vertices, corner_normals, 8)
+    assert len(points.point_vertices) == 24 and points.split_vertices == 8 and points.extra_points == 16
+    np.testing.assert_array_equal(points.point_vertices[:8], np.arange(8))
+    np.testing.assert_array_equal(points.point_vertices[points.corner_points], corner_vertices)
+    np.testing.assert_array_equal(points.point_normals[points.corner_points], corner_normals)
+    assert len(np.unique(points.corner_points)) == 24  # no two faces share a point
+
+
+def test_corners_with_one_normal_are_one_point_and_the_vertices_keep_their_indices():
+    corner_vertices, _ = flat_cube()
+    smooth = np.array([[1.0, 2.0, 3.0]])[[0] * 24] / np.sqrt(14.0)
+    wobble = smooth + 1e-7 * np.random.default_rng(1).standard_normal(smooth.shape)  # float32 round-off
+    points = shading_points(corner_vertices, wobble, 8)
+    assert len(points.point_vertices) == 8 and points.split_vertices == 0
+    np.testing.assert_array_equal(points.corner_points, corner_vertices)
+
+
+def test_a_split_vertex_keeps_the_normal_of_its_first_corner_as_its_own_point():
+    """Vertex 0 has corners 0 and 2 facing +z and corner 1 facing +x; vertex 1 one corner; vertex 2 none."""
+    corner_vertices = np.array([0, 0, 0, 1])
+    normals = np.array([[0, 0, 1], [1, 0, 0], [0, 0, 1], [0, 1, 0]], dtype=float)
+    points = shading_points(corner_vertices, normals, 3)
+    np.testing.assert_array_equal(points.corner_points, [0, 3, 0, 1])
+    np.testing.assert_array_equal(points.point_vertices, [0, 1, 2, 0])
+    np.testing.assert_array_equal(points.point_normals, [[0, 0, 1], [0, 1, 0], [0, 0, 0], [1, 0, 0]])
+    assert points.split_vertices == 1
