@@ -1,0 +1,120 @@
+"""Shading-aware transfer in Blender: vertices split by their corner normals are baked per normal, stored per face
+corner, relit, exported and drawn per corner, and agree with Cycles, which evaluates corner by corner."""
+
+import bpy
+import numpy as np
+
+from conftest import run_cli
+from prt_addon.blender import geometry, storage
+from prt_addon.blender.scene_bake import SceneBake
+from prt_addon.core import shading
+from prt_addon.core.bake import BakeSettings
+from test_bake_blender import box, grid
+
+
+def face_normal_of_corners(mesh) -> np.ndarray:
+    """(C, 3) the normal of each corner's face, from Blender's own face normals."""
+    normals = np.empty((len(mesh.loops), 3))
+    for face in mesh.polygons:
+        normals[list(face.loop_indices)] = face.normal
+    return normals
+
+
+def baked_flat_cube(samples=64):
+    floor, cube = grid("Floor"), box("Cube")
+    SceneBake(bpy.context, BakeSettings(samples=samples)).run()
+    return floor, cube
+
+
+def test_a_flat_cube_is_stored_per_corner_and_a_smooth_floor_per_vertex(empty_scene):
+    floor, cube = baked_flat_cube()
+    _, cube_meta = storage.read_transfer(cube.data)
+    _, floor_meta = storage.read_transfer(floor.data)
+    assert (cube_meta["domain"], cube_meta["split_vertices"], cube_meta["points"]) == ("CORNER", 8, 24)
+    assert floor_meta["domain"] == "POINT" and storage.corner_points_of(floor.data) is None
+    assert {a.domain for a in cube.data.attributes if a.name.startswith("_prt_")} == {"CORNER"}
+    assert {a.domain for a in floor.data.attributes if a.name.startswith("_prt_")} == {"POINT"}
+
+
+def test_smooth_meshes_are_baked_with_their_vertex_normals_exactly(empty_scene):
+    bpy.ops.mesh.primitive_uv_sphere_add(segments=12, ring_count=6)
+    sphere = bpy.context.object
+    sphere.data.shade_smooth()
+    surface = geometry.surface_from_object(sphere, bpy.context.evaluated_depsgraph_get(), [])
+    assert surface.corner_points is None and surface.split_vertices == 0
+    expected = geometry.directions_to_world(np.array(sphere.matrix_world), geometry.mesh_vertex_normals(sphere.data))
+    np.testing.assert_array_equal(surface.receiver.normals, expected)
+
+
+def test_each_point_of_a_flat_cube_is_baked_with_its_faces_normal(empty_scene):
+    _, cube = baked_flat_cube()
+    surface = geometry.surface_from_object(cube, bpy.context.evaluated_depsgraph_get(), [])
+    corner_points = surface.corner_points
+    np.testing.assert_allclose(surface.receiver.normals[corner_points], face_normal_of_corners(cube.data),
+                               atol=1e-6)
+    # The top face sees the open sky: its unshadowed transfer, whatever else the bake did at the vertex.
+    transfer, _ = storage.read_transfer(cube.data)
+    top = face_normal_of_corners(cube.data)[:, 2] > 0.99
+    dc = transfer[storage.corner_points_of(cube.data)[top], 0]
+    np.testing.assert_allclose(dc, dc[0], rtol=1e-6)
+
+
+def test_relighting_writes_corner_colours_one_product_per_point(empty_scene, prt):
+    _, cube = baked_flat_cube()
+    bpy.ops.prt.light_add(kind="SUN")
+    bpy.context.scene.prt_lights[-1].strength = 2.0
+    bpy.context.view_layer.update()
+    colours = cube.data.color_attributes["prt_color"]
+    assert colours.domain == "CORNER"
+    written = np.empty(len(cube.data.loops) * 4, dtype=np.float32)
+    colours.data.foreach_get("color", written)
+    entry = bpy.context.scene.prt_lights[-1]
+    light = shading.sun_coefficients(4, shading.direction_from_angles(entry.theta, entry.phi), entry.angular_radius,
+                                     2.0)
+    transfer, _ = storage.read_transfer(cube.data)
+    expected = np.maximum(transfer @ light, 0.0)[storage.corner_points_of(cube.data)]
+    np.testing.assert_allclose(written.reshape(-1, 4)[:, 0], expected, rtol=1e-4, atol=1e-6)
+    faces = face_normal_of_corners(cube.data)
+    lit = written.reshape(-1, 4)[:, 0]
+    assert lit[faces[:, 2] > 0.99].min() > lit[faces[:, 2] < -0.99].max()  # the top brighter than the bottom
+
+
+def test_export_gives_points_and_each_corners_point(empty_scene, tmp_path):
+    baked_flat_cube()
+    path, npz = tmp_path / "cube.blend", tmp_path / "cube.npz"
+    bpy.ops.wm.save_as_mainfile(filepath=str(path))
+    result = run_cli("export", path, "--object", "Cube", "--npz", npz)
+    assert result.returncode == 0, result.stderr
+    assert "8 vertices (8 split: 24 points)" in result.stdout
+    exported = np.load(npz)
+    cube = bpy.data.objects["Cube"]
+    assert exported["transfer"].shape == (24, 1, 16) and exported["positions"].shape == (24, 3)
+    corner_points, corner_vertices = exported["corner_points"], exported["corner_vertices"]
+    np.testing.assert_array_equal(exported["point_vertices"][corner_points], corner_vertices)
+    np.testing.assert_allclose(exported["normals"][corner_points], face_normal_of_corners(cube.data), atol=1e-6)
+
+
+def test_the_normals_overlay_draws_one_line_per_corner_normal(empty_scene, prt):
+    _, cube = baked_flat_cube()
+    segments = prt.overlays.normal_segments(cube).reshape(-1, 2, 3)
+    directions = segments[:, 1] - segments[:, 0]
+    directions /= np.linalg.norm(directions, axis=1, keepdims=True)
+    assert len(segments) == 24
+    assert {tuple(np.round(d, 5) + 0.0) for d in directions} == {(0, 0, 1), (0, 0, -1), (0, 1, 0), (0, -1, 0),
+                                                                (1, 0, 0), (-1, 0, 0)}
+
+
+def test_a_flat_shaded_sphere_agrees_with_cycles_corner_by_corner(empty_scene, prt):
+    """A flat low-poly sphere over a plane: Cycles bakes each corner with its face's normal. Per corner, PRT agrees
+    to 0.35 % RMS (4 × 32 Cycles samples, measured); the per-vertex bake of before, whose smooth normals Cycles'
+    corners never use, was 1.28 % off on the same scene (and more under a low sun)."""
+    bpy.ops.mesh.primitive_plane_add(size=6)
+    bpy.ops.mesh.primitive_uv_sphere_add(segments=16, ring_count=8, location=(0, 0, 1.1))
+    bpy.ops.object.select_all(action="DESELECT")
+    SceneBake(bpy.context, BakeSettings(samples=256)).run()
+    validation = prt.validation.Validation(bpy.context, 32, 4)
+    comparisons = validation.run()
+    sphere = next(c for c in comparisons if c.name == "Sphere")
+    assert sphere.vertices == len(bpy.data.objects["Sphere"].data.loops)  # compared per corner
+    assert sphere.error < 0.01 and sphere.p99 < 0.06, validation.lines(comparisons)  # p99 3.2 % measured
+    assert any("corner by corner" in note for note in validation.notes)
