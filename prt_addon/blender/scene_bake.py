@@ -11,7 +11,7 @@ import numpy as np
 
 from ..core import bake, job, subsurface, workers
 from ..core.errors import InputError
-from ..core.progress import Job
+from ..core.progress import WrappingJob
 from . import geometry, materials, storage
 from .occluders import occluders_from_depsgraph
 
@@ -74,7 +74,7 @@ class BakeReport:
                 "subsurface_objects": self.subsurface_objects}
 
 
-class SceneBake(Job):
+class SceneBake(WrappingJob):
     """Gathers receivers and occluders, runs a TransferJob, then stores everything at once (its outcome)."""
 
     def __init__(self, context, settings: bake.BakeSettings, object_names=None, workers: int = 1):
@@ -130,15 +130,8 @@ class SceneBake(Job):
                 self.notes.append(f"{problem}; it casts shadows but reflects no light")
         return found
 
-    @property
-    def progress(self):
-        return self.job.progress
-
-    def step(self, budget_s: float = 0.1) -> bool:
-        return self.job.step(budget_s)
-
-    def cancel(self):
-        self.job.cancel()
+    def inner(self) -> job.TransferJob:
+        return self.job
 
     def outcome(self) -> job.Summary:
         """Stores the bake, once, and returns its summary."""

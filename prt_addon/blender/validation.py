@@ -16,7 +16,7 @@ import numpy as np
 
 from ..core import lights, lobes, shading
 from ..core.errors import InputError
-from ..core.progress import Job
+from ..core.progress import WrappingJob
 from ..core.statistics import clamped_fraction, compare, worst_object
 from . import geometry, materials, storage
 from .cycles import CyclesReference, LightGroup, rendered_meshes
@@ -67,7 +67,7 @@ class ValidationReport:
         return asdict(self)
 
 
-class Validation(Job):
+class Validation(WrappingJob):
     """The receivers' PRT colours against Cycles under the same light; shared by the operator and the command
     line. Receivers are the named objects, else the selected meshes, else every visible mesh, that have a bake."""
 
@@ -128,16 +128,9 @@ class Validation(Job):
             raise InputError("nothing to validate: " + ("; ".join(self.problems) or "no mesh objects"))
         return found
 
-    @property
-    def progress(self):
-        return self.cycles.progress
-
-    def step(self, budget_s: float = 0.0) -> bool:
-        """One Cycles pass (a pass cannot be split, whatever the budget)."""
-        return self.cycles.step(budget_s)
-
-    def cancel(self):
-        self.cycles.cancel()
+    def inner(self) -> CyclesReference:
+        """Its steps are Cycles' passes, one a step (a pass cannot be split, whatever the budget)."""
+        return self.cycles
 
     def outcome(self) -> list:
         return self.comparisons()

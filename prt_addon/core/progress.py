@@ -84,3 +84,21 @@ class Job:
         if log:
             log(self.progress.line())
         return self.outcome()
+
+
+class WrappingJob(Job):
+    """A job whose work is another job's (`inner()`): it steps, reports and cancels through it and adds what it
+    makes of the outcome (a scene bake stores the bake job's results; a validation compares Cycles' passes)."""
+
+    def inner(self) -> Job:
+        raise NotImplementedError
+
+    @property
+    def progress(self) -> Progress:
+        return self.inner().progress
+
+    def step(self, budget_s: float) -> bool:
+        return self.inner().step(budget_s)
+
+    def cancel(self):
+        self.inner().cancel()
