@@ -1,6 +1,8 @@
 """Shading-aware transfer in Blender: vertices split by their corner normals are baked per normal, stored per face
 corner, relit, exported and drawn per corner, and agree with Cycles, which evaluates corner by corner."""
 
+import json
+
 import bpy
 import numpy as np
 
@@ -118,3 +120,48 @@ def test_a_flat_shaded_sphere_agrees_with_cycles_corner_by_corner(empty_scene, p
     assert sphere.vertices == len(bpy.data.objects["Sphere"].data.loops)  # compared per corner
     assert sphere.error < 0.01 and sphere.p99 < 0.06, validation.lines(comparisons)  # p99 3.2 % measured
     assert any("corner by corner" in note for note in validation.notes)
+
+
+def glb_attributes(path) -> dict:
+    """{mesh name: {attribute: (count, k) float32 array}} of a .glb's first primitives (float accessors only)."""
+    data = path.read_bytes()
+    json_length = int.from_bytes(data[12:16], "little")
+    document = json.loads(data[20:20 + json_length])
+    binary = data[20 + json_length + 8:]
+    sizes = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4}
+    found = {}
+    for mesh in document["meshes"]:
+        attributes = {}
+        for name, index in mesh["primitives"][0]["attributes"].items():
+            accessor = document["accessors"][index]
+            if accessor["componentType"] != 5126:  # FLOAT
+                continue
+            view = document["bufferViews"][accessor["bufferView"]]
+            start = view.get("byteOffset", 0) + accessor.get("byteOffset", 0)
+            width = sizes[accessor["type"]]
+            values = np.frombuffer(binary, np.float32, accessor["count"] * width, start)
+            attributes[name] = values.reshape(-1, width)
+        found[mesh["name"]] = attributes
+    return found
+
+
+def test_blenders_gltf_exporter_carries_the_transfer_of_each_corner(empty_scene, tmp_path):
+    """glTF has no corners: the exporter unwelds a vertex wherever its corners differ, so a flat cube leaves as
+    24 vertices, each with the transfer of its face's point (Include > Attributes)."""
+    _, cube = baked_flat_cube()
+    import addon_utils
+    addon_utils.enable("io_scene_gltf2")
+    path = tmp_path / "cube.glb"
+    bpy.ops.export_scene.gltf(filepath=str(path), export_format="GLB", export_attributes=True)
+    exported = glb_attributes(path)["Cube"]
+    transfer, _ = storage.read_transfer(cube.data)
+    assert len(exported["_PRT_T00"]) == 24
+    # glTF is Y-up: a Blender normal (x, y, z) leaves as (x, z, −y); each vertex's DC coefficient is its face's.
+    blender_normals = exported["NORMAL"][:, [0, 2, 1]] * [1, -1, 1]
+    surface = geometry.surface_from_object(cube, bpy.context.evaluated_depsgraph_get(), [])
+    world_positions = surface.receiver.positions
+    for position, normal, dc in zip(exported["POSITION"], blender_normals, exported["_PRT_T00"][:, 0]):
+        world = np.array(cube.matrix_world) @ np.array([position[0], -position[2], position[1], 1.0])
+        point = np.flatnonzero((np.linalg.norm(world_positions - world[:3], axis=1) < 1e-5)
+                               & (np.abs(surface.receiver.normals @ normal - 1) < 1e-5))
+        assert len(point) == 1 and dc == transfer[point[0], 0]
