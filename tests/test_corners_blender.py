@@ -165,3 +165,22 @@ def test_blenders_gltf_exporter_carries_the_transfer_of_each_corner(empty_scene,
         point = np.flatnonzero((np.linalg.norm(world_positions - world[:3], axis=1) < 1e-5)
                                & (np.abs(surface.receiver.normals @ normal - 1) < 1e-5))
         assert len(point) == 1 and dc == transfer[point[0], 0]
+
+
+def test_a_face_resting_on_the_floor_receives_no_light_and_the_cube_agrees_with_cycles(empty_scene, prt):
+    """A cube standing on a plane: its bottom face lies on the floor, facing it. Cycles' rays from there meet the
+    floor at once (black); the bake must not push their origins through the floor to the sky below. Measured:
+    the cube 0.58 % RMS against 4 × 32 Cycles samples (64 % at the bottom before the contact rule)."""
+    bpy.ops.mesh.primitive_plane_add(size=6)
+    bpy.ops.mesh.primitive_cube_add(location=(0, 0, 1.0))
+    bpy.ops.object.select_all(action="DESELECT")
+    SceneBake(bpy.context, BakeSettings(samples=256), ["Cube"]).run()
+    cube = bpy.data.objects["Cube"]
+    transfer, _ = storage.read_transfer(cube.data)
+    corner_points = storage.corner_points_of(cube.data)
+    bottom = face_normal_of_corners(cube.data)[:, 2] < -0.99
+    assert np.all(transfer[corner_points[bottom]] == 0.0)
+    assert np.all(np.abs(transfer[corner_points[~bottom], 0]) > 0.05)  # the other faces see light
+    validation = prt.validation.Validation(bpy.context, 32, 4, ["Cube"])
+    comparisons = validation.run()
+    assert comparisons[0].error < 0.02 and comparisons[0].p99 < 0.08, validation.lines(comparisons)

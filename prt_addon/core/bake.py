@@ -41,6 +41,9 @@ OFFSET_FRACTION = 1e-5
 # the inside of each vertex's faces, so a vertex on a seam is seen from its own side; 3: a vertex split by its
 # corner normals is baked once per normal and stored per face corner, see blender/storage.py).
 CONVENTION_VERSION = 3
+# A point whose face lies on another surface facing it (an object resting on a floor) is in contact: Cycles' rays
+# from it meet that surface at once. Faces count as facing when their normals are this close to opposite.
+CONTACT_COSINE = -0.999
 
 
 @dataclass
@@ -122,7 +125,7 @@ class ChunkResult:
     transfer: np.ndarray   # (c, n²) float64
     std_error: np.ndarray  # (c,) norm of the coefficients' standard error
     rays: np.ndarray       # (c,) rays cast per vertex
-    skipped: np.ndarray    # (c,) bool: provably unoccluded, no rays
+    skipped: np.ndarray    # (c,) bool: exact without rays (provably unoccluded, or in contact)
     records: interreflect.HitRecords | None = None  # interreflected mode: blocked rays' hits (chunk-local rows)
 
 
@@ -185,6 +188,13 @@ class RayCaster:
         per_ray_origins = chain.from_iterable(repeat(origin, k) for origin in map(tuple, origins.tolist()))
         return map(self.tree.ray_cast, per_ray_origins, zip(xs, ys, zs), repeat(self.max_distance))
 
+    def in_contact(self, points: np.ndarray, normals: np.ndarray) -> np.ndarray:
+        """(c,) bool: an occluder face within the ray offset of the point faces it, coplanar with the point's own
+        face (its own faces face the same way and never count). Every ray the point sends runs into it."""
+        near = map(self.tree.find_nearest_range, map(tuple, points.tolist()), repeat(self.offset))
+        return np.array([any(face_normal.dot(normal) < CONTACT_COSINE for _, face_normal, _, _ in faces)
+                         for faces, normal in zip(near, normals.tolist())], dtype=bool)
+
     def front_hits(self, origins, directions, triangle, distance):
         """(barycentric (H, 3), front (H,) bool) for hits: the light leaving a surface is known on its front."""
         corners = self.vertices[self.triangles[triangle]]
@@ -200,7 +210,10 @@ def shadowed_chunk(caster: RayCaster, positions, normals, inward, keys, settings
     count = len(positions)
     unshadowed = unshadowed_transfer(order, normals)
     has_surface = np.abs(normals).sum(-1) > 0
-    skipped = has_surface & provably_unoccluded(positions, normals, caster.hull, caster.offset)
+    # Contact is tested a little inside the point's own faces, so that a surface merely touching the vertex does
+    # not count; it overrides the hull test, which a coplanar surface below the point cannot fail.
+    contact = has_surface & caster.in_contact(positions + caster.offset * inward, normals)
+    skipped = has_surface & (provably_unoccluded(positions, normals, caster.hull, caster.offset) | contact)
     rays = np.zeros(count, dtype=np.int64)
     tangents, bitangents = sampling.orthonormal_basis(np.where(has_surface[:, None], normals, [0.0, 0.0, 1.0]))
     frames = np.stack([tangents, bitangents, normals], axis=1)
@@ -236,6 +249,7 @@ def shadowed_chunk(caster: RayCaster, positions, normals, inward, keys, settings
             break
     transfer, error = _combine(rounds, rays, count, order)
     transfer[rays == 0] = unshadowed[rays == 0]  # exact: provably unoccluded, or no surface (zero)
+    transfer[contact] = 0.0  # exact: every direction is blocked by the surface it rests on
     return ChunkResult(transfer, error, rays, skipped, _records(hits, rays))
 
 

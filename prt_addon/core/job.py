@@ -28,7 +28,7 @@ class ReceiverResult:
     std_error: np.ndarray   # (V,) norm of the standard error of the coefficients
     rel_error: np.ndarray   # (V,) std_error ÷ norm of the unshadowed transfer (0 without a surface)
     rays: np.ndarray        # (V,) int64
-    skipped: np.ndarray     # (V,) bool: provably unoccluded, exact without rays
+    skipped: np.ndarray     # (V,) bool: exact without rays (provably unoccluded, or in contact)
 
 
 @dataclass
