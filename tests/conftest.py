@@ -17,6 +17,23 @@ TEST_REPO = "prt_test_repo"
 ADDON_MODULE = f"bl_ext.{TEST_REPO}.{EXTENSION_ID}"
 
 
+def pytest_sessionfinish(session, exitstatus):
+    session.config.prt_exit_status = int(exitstatus)
+
+
+@pytest.hookimpl(trylast=True)
+def pytest_unconfigure(config):
+    """Blender 4.5's bpy module can hang at the very end of a process: a static destructor destroys the condition
+    variable its delayed file-close thread still waits on (seen after this suite: ~GlobalState blocked in
+    pthread_cond_destroy while delayed_close_thread_run waits). Once pytest has printed and saved everything, such
+    a process leaves at once with pytest's exit status instead of running C++ static destructors."""
+    bpy = sys.modules.get("bpy")
+    if bpy is not None and bpy.app.version < (5, 0, 0) and hasattr(config, "prt_exit_status"):
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(config.prt_exit_status)
+
+
 def blender_ext_tool() -> Path:
     import bpy
     return Path(bpy.utils.system_resource("SCRIPTS")) / "addons_core" / "bl_pkg" / "cli" / "blender_ext.py"

@@ -129,12 +129,18 @@ def test_a_flat_sphere_agrees_with_cycles_far_better_than_its_smooth_normal_bake
     assert errors["smooth_normals_off_floor"] >= 3 * errors["per_corner_off_floor"], errors
 
 
-def test_the_estimate_is_exact_where_the_bake_is(measured):
-    """Every occluder these three see is the floor, a flat polygon integrated in closed form, or their own convex
-    (or planar) surface: the bake casts rays but every ray's control variate cancels, so it estimates zero error.
-    The 16 × reference (another seed) must agree to float32 round-off."""
-    for row in measured.values():
-        if isinstance(row, assets.Row):
+def test_the_estimate_is_exact_where_the_bake_is_and_honest_elsewhere(measured):
+    """Every occluder woody and the cylinder see is the floor, a flat polygon integrated in closed form, or their
+    own convex (or planar) surface: every ray's control variate cancels, so the bake estimates zero error and the
+    16 × reference (another seed) agrees to float32 round-off. The flat sphere's pole corners touch the floor at
+    an angle: their rays start above it, inside the sphere, and its own faces block them by ray casting, which has
+    noise: there the estimate must be honest (within 1.5 × of the actual error at the same points)."""
+    for name, row in measured.items():
+        if not isinstance(row, assets.Row):
+            continue
+        if name == "sphere flat":
+            assert 1 / 1.5 <= row.honesty <= 1.5, row
+        else:
             assert row.est_rms_rel_error == 0.0 and row.exact, row
 
 

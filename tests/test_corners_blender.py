@@ -152,7 +152,10 @@ def test_blenders_gltf_exporter_carries_the_transfer_of_each_corner(empty_scene,
     import addon_utils
     addon_utils.enable("io_scene_gltf2")
     path = tmp_path / "cube.glb"
-    bpy.ops.export_scene.gltf(filepath=str(path), export_format="GLB", export_attributes=True)
+    try:
+        bpy.ops.export_scene.gltf(filepath=str(path), export_format="GLB", export_attributes=True)
+    finally:  # nothing stays registered: Blender 4.5's module hangs at exit otherwise
+        addon_utils.disable("io_scene_gltf2")
     exported = glb_attributes(path)["Cube"]
     transfer, _ = storage.read_transfer(cube.data)
     assert len(exported["_PRT_T00"]) == 24
@@ -184,3 +187,16 @@ def test_a_face_resting_on_the_floor_receives_no_light_and_the_cube_agrees_with_
     validation = prt.validation.Validation(bpy.context, 32, 4, ["Cube"])
     comparisons = validation.run()
     assert comparisons[0].error < 0.02 and comparisons[0].p99 < 0.08, validation.lines(comparisons)
+
+
+def test_a_flat_sphere_resting_on_its_pole_agrees_with_cycles(empty_scene, prt):
+    """The pole's faces touch the floor at an angle, facing it: Cycles' rays from the pole that cross the floor
+    are blocked there. The bake starts those rays above the floor instead of below it. Measured: 0.63 % RMS,
+    p99 4.3 % (11.7 % RMS, p99 64 % with the origins below the floor)."""
+    bpy.ops.mesh.primitive_plane_add(size=6)
+    bpy.ops.mesh.primitive_uv_sphere_add(segments=16, ring_count=8, location=(0, 0, 1.0))
+    bpy.ops.object.select_all(action="DESELECT")
+    SceneBake(bpy.context, BakeSettings(samples=256), ["Sphere"]).run()
+    validation = prt.validation.Validation(bpy.context, 32, 4, ["Sphere"])
+    comparisons = validation.run()
+    assert comparisons[0].error < 0.02 and comparisons[0].p99 < 0.1, validation.lines(comparisons)

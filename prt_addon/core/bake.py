@@ -41,9 +41,12 @@ OFFSET_FRACTION = 1e-5
 # the inside of each vertex's faces, so a vertex on a seam is seen from its own side; 3: a vertex split by its
 # corner normals is baked once per normal and stored per face corner, see blender/storage.py).
 CONVENTION_VERSION = 3
-# A point whose face lies on another surface facing it (an object resting on a floor) is in contact: Cycles' rays
-# from it meet that surface at once. Faces count as facing when their normals are this close to opposite.
-CONTACT_COSINE = -0.999
+# A point whose face touches another surface that it faces (an object resting on a floor) is in contact: Cycles'
+# rays from it meet that surface at once wherever they cross it. Lying on it (a little inside the point's own
+# face is on that surface), every ray does: the point is black. Touching it at an angle, the rays start in front
+# of both. Faces count as facing when their normals are at least this far from perpendicular.
+FACING_COSINE = -0.05
+ON_SURFACE = 0.01  # of the ray offset: how far from a surface a point still lies on it
 
 
 @dataclass
@@ -188,12 +191,20 @@ class RayCaster:
         per_ray_origins = chain.from_iterable(repeat(origin, k) for origin in map(tuple, origins.tolist()))
         return map(self.tree.ray_cast, per_ray_origins, zip(xs, ys, zs), repeat(self.max_distance))
 
-    def in_contact(self, points: np.ndarray, normals: np.ndarray) -> np.ndarray:
-        """(c,) bool: an occluder face within the ray offset of the point faces it, coplanar with the point's own
-        face (its own faces face the same way and never count). Every ray the point sends runs into it."""
+    def touched_surfaces(self, points: np.ndarray, normals: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(normals (c, 3), heights (c,)): of the occluder face within the ray offset of each point that faces it
+        most, with the point on its front side, its normal and the point's height above it; zero normal where
+        there is none. The points lie a little inside their own faces: their own and adjacent faces face the
+        same way or lie behind them (a crease, a knife edge) and never count."""
+        touched, heights = np.zeros_like(normals), np.zeros(len(points))
         near = map(self.tree.find_nearest_range, map(tuple, points.tolist()), repeat(self.offset))
-        return np.array([any(face_normal.dot(normal) < CONTACT_COSINE for _, face_normal, _, _ in faces)
-                         for faces, normal in zip(near, normals.tolist())], dtype=bool)
+        for row, (faces, point, normal) in enumerate(zip(near, points, normals)):
+            facing = [(face_normal.dot(normal), face_normal, np.dot(point - np.asarray(nearest), face_normal))
+                      for nearest, face_normal, _, _ in faces if face_normal.dot(normal) < FACING_COSINE]
+            facing = [found for found in facing if found[2] > -ON_SURFACE * self.offset]
+            if facing:
+                _, touched[row], heights[row] = min(facing, key=itemgetter(0))
+        return touched, heights
 
     def front_hits(self, origins, directions, triangle, distance):
         """(barycentric (H, 3), front (H,) bool) for hits: the light leaving a surface is known on its front."""
@@ -212,12 +223,18 @@ def shadowed_chunk(caster: RayCaster, positions, normals, inward, keys, settings
     has_surface = np.abs(normals).sum(-1) > 0
     # Contact is tested a little inside the point's own faces, so that a surface merely touching the vertex does
     # not count; it overrides the hull test, which a coplanar surface below the point cannot fail.
-    contact = has_surface & caster.in_contact(positions + caster.offset * inward, normals)
+    touched, heights = caster.touched_surfaces(positions + caster.offset * inward, normals)
+    facing = np.einsum("ij,ij->i", touched, normals) < 0
+    contact = has_surface & facing & (heights <= ON_SURFACE * caster.offset)
     skipped = has_surface & (provably_unoccluded(positions, normals, caster.hull, caster.offset) | contact)
     rays = np.zeros(count, dtype=np.int64)
     tangents, bitangents = sampling.orthonormal_basis(np.where(has_surface[:, None], normals, [0.0, 0.0, 1.0]))
     frames = np.stack([tangents, bitangents, normals], axis=1)
-    origins = positions + caster.offset * (normals + inward)
+    # A point touching a surface at an angle starts its rays in front of both (along the bisector of the two
+    # normals), so rays that cross that surface are blocked there and the others leave as from its own face.
+    lifted = normals + touched
+    lifted /= np.maximum(np.linalg.norm(lifted, axis=1, keepdims=True), 1e-12)
+    origins = positions + caster.offset * (np.where(facing[:, None], lifted, normals) + inward)
     cones, flat_blocked = _flat_shadows(caster, origins, normals, order)
     rounds = []  # (vertices, rays per vertex, transfer mean, transfer variance), combined below
     hits = [] if settings.mode == "interreflected" else None  # (chunk vertex, triangle, barycentric) per round
