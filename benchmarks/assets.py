@@ -30,7 +30,7 @@ import numpy as np  # noqa: E402
 
 from benchmarks.bake import Picks, bake_picks  # noqa: E402
 from benchmarks.convergence import REFERENCE_FACTOR, REFERENCE_SEED_OFFSET, coefficient_error  # noqa: E402
-from prt_addon.blender import geometry, sample_scenes, storage, validation  # noqa: E402
+from prt_addon.blender import geometry, mesh_arrays, sample_scenes, storage, validation  # noqa: E402
 from prt_addon.blender.scene_bake import SceneBake  # noqa: E402
 from prt_addon.commands.common import addon_registered, write_json  # noqa: E402
 from prt_addon.core import lights  # noqa: E402
@@ -77,7 +77,7 @@ def evaluated_world_positions(ob) -> np.ndarray:
     evaluated = ob.evaluated_get(bpy.context.evaluated_depsgraph_get())
     mesh = evaluated.to_mesh()
     try:
-        return geometry.points_to_world(np.array(ob.matrix_world), geometry.mesh_positions(mesh))
+        return geometry.points_to_world(np.array(ob.matrix_world), mesh_arrays.mesh_positions(mesh))
     finally:
         evaluated.to_mesh_clear()
 
@@ -312,7 +312,7 @@ def compared_colours(check, ob):
     if corner_points is None:
         rows, albedo = np.arange(len(ob.data.vertices)), check.albedos[ob]
     else:
-        rows, albedo = corner_points, check.albedos[ob][geometry.mesh_corner_vertices(ob.data)]
+        rows, albedo = corner_points, check.albedos[ob][mesh_arrays.mesh_corner_vertices(ob.data)]
     colours = validation.prt_colours(transfer[rows], check.lights[meta["order"]], albedo)
     return colours, np.stack(check.cycles.radiance[ob.name]), rows
 
@@ -364,7 +364,7 @@ def smooth_normal_errors(name: str, check, touching, settings: Settings) -> dict
     was baked with differs."""
     ob = bpy.data.objects[name]
     corner_colours, passes, _ = compared_colours(check, ob)
-    corner_vertices = geometry.mesh_corner_vertices(ob.data)
+    corner_vertices = mesh_arrays.mesh_corner_vertices(ob.data)
     ob.data.shade_smooth()
     bake_scene([name], settings)
     transfer, meta = storage.read_transfer(ob.data)

@@ -7,7 +7,7 @@ import bpy
 import numpy as np
 
 from conftest import run_cli
-from prt_addon.blender import geometry, storage
+from prt_addon.blender import geometry, mesh_arrays, storage
 from prt_addon.blender.scene_bake import SceneBake
 from prt_addon.core import shading
 from prt_addon.core.bake import BakeSettings
@@ -44,7 +44,7 @@ def test_smooth_meshes_are_baked_with_their_vertex_normals_exactly(empty_scene):
     sphere.data.shade_smooth()
     surface = geometry.surface_from_object(sphere, bpy.context.evaluated_depsgraph_get(), [])
     assert surface.corner_points is None and surface.split_vertices == 0
-    expected = geometry.directions_to_world(np.array(sphere.matrix_world), geometry.mesh_vertex_normals(sphere.data))
+    expected = geometry.directions_to_world(np.array(sphere.matrix_world), mesh_arrays.mesh_vertex_normals(sphere.data))
     np.testing.assert_array_equal(surface.receiver.normals, expected)
 
 

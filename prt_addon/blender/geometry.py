@@ -9,42 +9,11 @@ import numpy as np
 from ..core import bake, corners
 from ..core.errors import InputError
 from . import materials
+from .mesh_arrays import (mesh_corner_normals, mesh_corner_vertices, mesh_positions, mesh_triangles,
+                          mesh_vertex_normals)
 
 
-# -- arrays and transforms ------------------------------------------------------------------------------------
-def mesh_positions(mesh) -> np.ndarray:
-    positions = np.empty(len(mesh.vertices) * 3, dtype=np.float64)
-    mesh.vertices.foreach_get("co", positions)
-    return positions.reshape(-1, 3)
-
-
-def mesh_vertex_normals(mesh) -> np.ndarray:
-    normals = np.empty(len(mesh.vertices) * 3, dtype=np.float64)
-    mesh.vertex_normals.foreach_get("vector", normals)
-    return normals.reshape(-1, 3)
-
-
-def mesh_triangles(mesh, of: str = "vertices") -> np.ndarray:
-    """(T, 3) the triangles' vertices, or with of="loops" their face corners."""
-    mesh.calc_loop_triangles()
-    triangles = np.empty(len(mesh.loop_triangles) * 3, dtype=np.int32)
-    mesh.loop_triangles.foreach_get(of, triangles)
-    return triangles.reshape(-1, 3)
-
-
-def mesh_corner_vertices(mesh) -> np.ndarray:
-    corner_vertices = np.empty(len(mesh.loops), dtype=np.int64)
-    mesh.loops.foreach_get("vertex_index", corner_vertices)
-    return corner_vertices
-
-
-def mesh_corner_normals(mesh) -> np.ndarray:
-    """(C, 3) the normal Blender shades each face corner with (flat faces, sharp edges, custom normals)."""
-    normals = np.empty(len(mesh.loops) * 3, dtype=np.float64)
-    mesh.corner_normals.foreach_get("vector", normals)
-    return normals.reshape(-1, 3)
-
-
+# -- shading points and transforms ---------------------------------------------------------------------------
 def mesh_shading_points(mesh) -> corners.ShadingPoints:
     return corners.shading_points(mesh_corner_vertices(mesh), mesh_corner_normals(mesh), len(mesh.vertices))
 

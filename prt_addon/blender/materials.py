@@ -14,6 +14,8 @@ object's own in either case.
 import bpy
 import numpy as np
 
+from .mesh_arrays import mesh_corner_vertices
+
 DEFAULT_ALBEDO = (0.8, 0.8, 0.8)  # what Blender renders a mesh without material with
 ORIGINALS_KEY = "_prt_original_materials"  # on an object: its materials' names while the display is shown
 
@@ -92,7 +94,7 @@ def subsurface_material(ob):
 def vertex_albedo(ob, mesh, notes: list, corner_points=None, point_count=None) -> np.ndarray:
     """(V, 3) linear albedo per vertex of `mesh` (the object's mesh or its evaluated mesh): each face corner's base
     colour, averaged over the corners of each vertex; or (P, 3) per shading point, given each corner's point."""
-    corner_vertex = _corner_vertices(mesh)
+    corner_vertex = mesh_corner_vertices(mesh)
     groups = corner_vertex if corner_points is None else corner_points
     count = len(mesh.vertices) if corner_points is None else point_count
     face_material = np.empty(len(mesh.polygons), dtype=np.int64)
@@ -110,12 +112,6 @@ def vertex_albedo(ob, mesh, notes: list, corner_points=None, point_count=None) -
         total[:, channel] = np.bincount(groups, corner_colour[:, channel], minlength=count)
     corners = np.bincount(groups, minlength=count)[:, None]
     return np.where(corners > 0, total / np.maximum(corners, 1), np.array(DEFAULT_ALBEDO))
-
-
-def _corner_vertices(mesh) -> np.ndarray:
-    corner_vertex = np.empty(len(mesh.loops), dtype=np.int64)
-    mesh.loops.foreach_get("vertex_index", corner_vertex)
-    return corner_vertex
 
 
 def _material_colours(ob, mesh, material, notes) -> np.ndarray:
@@ -172,4 +168,4 @@ def _corner_colours(mesh, attribute) -> np.ndarray:
     values = np.empty(len(attribute.data) * 4, dtype=np.float32)
     attribute.data.foreach_get("color", values)  # linear, for byte and float attributes alike
     values = values.reshape(-1, 4)[:, :3].astype(np.float64)
-    return values if attribute.domain == "CORNER" else values[_corner_vertices(mesh)]
+    return values if attribute.domain == "CORNER" else values[mesh_corner_vertices(mesh)]

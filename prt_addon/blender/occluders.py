@@ -4,7 +4,8 @@ convex hull bounds it, and the flat convex polygons among it that the core integ
 import numpy as np
 
 from ..core import bake, polygons
-from .geometry import mesh_positions, mesh_triangles, points_to_world
+from .geometry import points_to_world
+from .mesh_arrays import mesh_positions, mesh_triangles
 
 HULL_TEST_POINTS = 1 << 16  # points tested against the extremes' hull at once, so memory stays bounded
 

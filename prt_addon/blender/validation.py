@@ -18,7 +18,7 @@ from ..core import lights, lobes, shading
 from ..core.errors import InputError
 from ..core.progress import WrappingJob
 from ..core.statistics import clamped_fraction, compare, worst_object
-from . import geometry, materials, storage
+from . import geometry, materials, mesh_arrays, storage
 from .cycles import CyclesReference, LightGroup, rendered_meshes
 from .lights import scene_lights
 
@@ -145,7 +145,7 @@ class Validation(WrappingJob):
             if corner_points is None:
                 colours.append(prt_colours(transfer, self.lights[meta["order"]], self.albedos[ob]))
             else:  # per face corner, as Cycles baked it
-                corner_albedo = self.albedos[ob][geometry.mesh_corner_vertices(ob.data)]
+                corner_albedo = self.albedos[ob][mesh_arrays.mesh_corner_vertices(ob.data)]
                 colours.append(prt_colours(transfer[corner_points], self.lights[meta["order"]], corner_albedo))
         self.shade_time_s = time.perf_counter() - start
         passes = [np.stack(self.cycles.radiance[ob.name]) for ob, _ in self.receivers]
@@ -191,7 +191,7 @@ class Validation(WrappingJob):
         ob, meta = next((ob, meta) for ob, meta in self.receivers if ob.name == found.name)
         indices = [index for index, _ in found.worst]
         domain = meta.get("domain", "POINT")
-        vertices = indices if domain == "POINT" else geometry.mesh_corner_vertices(ob.data)[indices]
+        vertices = indices if domain == "POINT" else mesh_arrays.mesh_corner_vertices(ob.data)[indices]
         positions = world_positions(self.context, ob, vertices)
         return {"object": found.name, "domain": domain,
                 "vertices": [{"index": index, "rel_error": error, "position": [float(x) for x in position]}
@@ -220,7 +220,7 @@ def world_positions(context, ob, indices) -> np.ndarray:
     evaluated = ob.evaluated_get(context.evaluated_depsgraph_get())
     mesh = evaluated.to_mesh()
     try:
-        positions = geometry.mesh_positions(mesh if len(mesh.vertices) == len(ob.data.vertices) else ob.data)
+        positions = mesh_arrays.mesh_positions(mesh if len(mesh.vertices) == len(ob.data.vertices) else ob.data)
     finally:
         evaluated.to_mesh_clear()
     return geometry.points_to_world(np.array(evaluated.matrix_world), positions[np.asarray(indices, dtype=int)])

@@ -6,7 +6,7 @@ import json
 import bpy
 import numpy as np
 
-from ..blender import geometry, storage
+from ..blender import geometry, mesh_arrays, storage
 from ..core.errors import InputError
 from .common import open_file
 
@@ -28,14 +28,15 @@ def run(args, in_blender: bool) -> int:
     corner_points = storage.corner_points_of(mesh)
     point_vertices = np.arange(len(transfer))
     normals = np.zeros((len(transfer), 3))
-    normals[: len(mesh.vertices)] = geometry.mesh_vertex_normals(mesh)
+    normals[: len(mesh.vertices)] = mesh_arrays.mesh_vertex_normals(mesh)
     per_corner = {}
     if corner_points is not None:
-        point_vertices[corner_points] = geometry.mesh_corner_vertices(mesh)
-        normals[corner_points] = geometry.mesh_corner_normals(mesh)
-        per_corner = {"corner_points": corner_points, "corner_vertices": geometry.mesh_corner_vertices(mesh)}
+        corner_vertices = mesh_arrays.mesh_corner_vertices(mesh)
+        point_vertices[corner_points] = corner_vertices
+        normals[corner_points] = mesh_arrays.mesh_corner_normals(mesh)
+        per_corner = {"corner_points": corner_points, "corner_vertices": corner_vertices}
     matrix = np.array(ob.matrix_world, dtype=np.float64)
-    local = geometry.mesh_positions(mesh)[point_vertices]
+    local = mesh_arrays.mesh_positions(mesh)[point_vertices]
     np.savez(args.npz, positions=geometry.points_to_world(matrix, local),
              normals=geometry.directions_to_world(matrix, normals), local_positions=local, matrix_world=matrix,
              transfer=transfer.reshape(len(local), -1, transfer.shape[-1]), point_vertices=point_vertices,

@@ -199,9 +199,9 @@ class RayCaster:
         touched, heights = np.zeros_like(normals), np.zeros(len(points))
         near = map(self.tree.find_nearest_range, map(tuple, points.tolist()), repeat(self.offset))
         for row, (faces, point, normal) in enumerate(zip(near, points, normals)):
-            facing = [(face_normal.dot(normal), face_normal, np.dot(point - np.asarray(nearest), face_normal))
-                      for nearest, face_normal, _, _ in faces if face_normal.dot(normal) < FACING_COSINE]
-            facing = [found for found in facing if found[2] > -ON_SURFACE * self.offset]
+            found = [(face_normal.dot(normal), face_normal, np.dot(point - np.asarray(nearest), face_normal))
+                     for nearest, face_normal, _, _ in faces]
+            facing = [face for face in found if face[0] < FACING_COSINE and face[2] > -ON_SURFACE * self.offset]
             if facing:
                 _, touched[row], heights[row] = min(facing, key=itemgetter(0))
         return touched, heights

@@ -21,15 +21,16 @@ class ShadingPoints:
     corner_points: np.ndarray  # (C,) the point of each face corner
     point_vertices: np.ndarray  # (P,) the vertex of each point; the first V are 0..V-1
     point_normals: np.ndarray   # (P, 3) the corner normal each point is shaded with
+    vertex_count: int
+
+    @property
+    def extra_points(self) -> int:
+        return len(self.point_vertices) - self.vertex_count
 
     @property
     def split_vertices(self) -> int:
         """How many vertices have more than one point."""
-        return len(np.unique(self.point_vertices[len(self.point_vertices) - self.extra_points:]))
-
-    @property
-    def extra_points(self) -> int:
-        return len(self.point_vertices) - int(self.point_vertices.max(initial=-1)) - 1
+        return len(np.unique(self.point_vertices[self.vertex_count:]))
 
 
 def shading_points(corner_vertices: np.ndarray, corner_normals: np.ndarray, vertex_count: int) -> ShadingPoints:
@@ -51,4 +52,4 @@ def shading_points(corner_vertices: np.ndarray, corner_normals: np.ndarray, vert
     point_vertices = np.concatenate([np.arange(vertex_count), group_vertex[extra]])
     point_normals = np.zeros((len(point_vertices), 3))
     point_normals[point_of_group] = np.asarray(corner_normals, dtype=np.float64)[first_corner]
-    return ShadingPoints(point_of_group[group_of_corner], point_vertices, point_normals)
+    return ShadingPoints(point_of_group[group_of_corner], point_vertices, point_normals, vertex_count)

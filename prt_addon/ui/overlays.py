@@ -9,7 +9,7 @@ import math
 import bpy
 import numpy as np
 
-from ..blender import geometry, lights, storage
+from ..blender import geometry, lights, mesh_arrays, storage
 
 MAX_NORMALS_PER_OBJECT = 20_000  # beyond this every k-th vertex: the overlay stays interactive on big meshes
 NORMAL_LENGTH = 0.03  # of the object's bounding-box diagonal
@@ -27,7 +27,7 @@ def normal_segments(ob) -> np.ndarray:
     points = geometry.mesh_shading_points(mesh)
     step = math.ceil(len(points.point_vertices) / MAX_NORMALS_PER_OBJECT)
     matrix = np.array(ob.matrix_world, dtype=np.float64)
-    starts = geometry.points_to_world(matrix, geometry.mesh_positions(mesh)[points.point_vertices[::step]])
+    starts = geometry.points_to_world(matrix, mesh_arrays.mesh_positions(mesh)[points.point_vertices[::step]])
     directions = geometry.directions_to_world(matrix, points.point_normals[::step])
     length = NORMAL_LENGTH * np.linalg.norm(np.ptp(starts, axis=0)) if len(starts) else 0.0
     return np.stack([starts, starts + length * directions], axis=1).reshape(-1, 3).astype(np.float32)
