@@ -195,10 +195,10 @@ def cast_benchmark_receiver(receivers, count):
     return bake.Receiver("CastBenchmark", positions, normals, bake.Receiver.key_for("CastBenchmark"), inward)
 
 
-def recorded_rays(caster, receiver, start, stop, settings):
+def recorded_rays(caster, receiver, rows, settings):
     """The rays the bake of one chunk casts, as Python lists: one origin and one direction per ray."""
     recorder = RecordingCaster(caster)
-    drain(bake.bake_chunk(recorder, receiver, start, stop, settings))
+    drain(bake.bake_chunk(recorder, receiver, rows, settings))
     origins, directions = [], []
     for batch_origins, batch_directions in recorder.batches:
         for origin, rays in zip(batch_origins.tolist(), batch_directions.tolist()):
@@ -215,9 +215,9 @@ def time_bare_loop(caster, origins, directions):
     return time.perf_counter() - start
 
 
-def time_bake_chunk(caster, receiver, start, stop, settings):
+def time_bake_chunk(caster, receiver, rows, settings):
     began = time.perf_counter()
-    rays = drain(bake.bake_chunk(caster, receiver, start, stop, settings))
+    rays = drain(bake.bake_chunk(caster, receiver, rows, settings))
     return time.perf_counter() - began, rays
 
 
@@ -228,9 +228,8 @@ def ray_cast_efficiency(caster, receivers, config):
     times (luckiest moments of each, not necessarily the same moments) is printed as a cross-check."""
     receiver = cast_benchmark_receiver(receivers, config.cast_vertices)
     settings = bake.BakeSettings(order=ORDER, samples=COMPARED_SAMPLES)
-    chunks = [(start, min(start + bake.CHUNK_VERTICES, len(receiver.positions)))
-              for start in range(0, len(receiver.positions), bake.CHUNK_VERTICES)]
-    replays = [recorded_rays(caster, receiver, start, stop, settings) for start, stop in chunks]
+    chunks = [rows for _, rows in bake.chunk_rows([receiver])]
+    replays = [recorded_rays(caster, receiver, rows, settings) for rows in chunks]
     rays = sum(len(directions) for _, directions in replays)
     gc.collect()
     gc.freeze()  # the replayed rays are millions of lists: keep them out of the collector's way
@@ -238,8 +237,8 @@ def ray_cast_efficiency(caster, receivers, config):
     bare_times = np.empty((config.cast_repeats, len(chunks)))
     try:
         for repeat in range(config.cast_repeats):
-            for n, ((start, stop), (origins, directions)) in enumerate(zip(chunks, replays)):
-                bake_times[repeat, n], cast = time_bake_chunk(caster, receiver, start, stop, settings)
+            for n, (rows, (origins, directions)) in enumerate(zip(chunks, replays)):
+                bake_times[repeat, n], cast = time_bake_chunk(caster, receiver, rows, settings)
                 assert cast == len(directions), "the replay must cast exactly the bake's rays"
                 bare_times[repeat, n] = time_bare_loop(caster, origins, directions)
     finally:

@@ -142,16 +142,16 @@ def run_cli(*args, cwd=ROOT, timeout=600):
 
 @pytest.fixture
 def chunks_baked_here(monkeypatch):
-    """The starts of the chunks the test's own process bakes, in order; worker processes run the same code
+    """The first rows of the chunks the test's own process bakes, in order; worker processes run the same code
     elsewhere, unrecorded."""
     import bpy  # noqa: F401  (before mathutils, which the core imports)
     from prt_addon.core import bake
     here, real, baked = os.getpid(), bake.bake_chunk, []
 
-    def recorded(caster, receiver, start, stop, settings):
+    def recorded(caster, receiver, rows, settings):
         if os.getpid() == here:
-            baked.append(start)
-        return real(caster, receiver, start, stop, settings)
+            baked.append(int(rows[0]))
+        return real(caster, receiver, rows, settings)
 
     monkeypatch.setattr(bake, "bake_chunk", recorded)
     return baked

@@ -248,7 +248,7 @@ def test_batching_a_round_never_changes_a_result(monkeypatch):
     (whole,), _ = run([receiver], disc(1.0, 1.0), **settings)
     monkeypatch.setattr(bake, "RAYS_PER_BATCH", 300)  # a few vertices per batch, uneven last batches
     yields = []
-    work = bake.bake_chunk(bake.RayCaster(disc(1.0, 1.0)), receiver, 0, bake.CHUNK_VERTICES,
+    work = bake.bake_chunk(bake.RayCaster(disc(1.0, 1.0)), receiver, np.arange(bake.CHUNK_VERTICES),
                            bake.BakeSettings(**settings))
     try:
         while True:

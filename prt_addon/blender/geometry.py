@@ -128,7 +128,8 @@ def surface_from_object(ob, depsgraph, notes: list, for_storage: bool = True, al
     if not usable.all():
         notes.append(f"{ob.name!r}: {int((~usable).sum())} vertices are loose or only on zero-area faces; "
                      f"they get zero transfer")
-    receiver = bake.Receiver(ob.name, world_positions, world_normals, bake.Receiver.key_for(ob.name), inward)
+    groups = corners.ray_groups(points.point_vertices, world_normals, len(vertex_normals)) if split else None
+    receiver = bake.Receiver(ob.name, world_positions, world_normals, bake.Receiver.key_for(ob.name), inward, groups)
     return Surface(receiver, triangles, colours, points.corner_points if split else None, points.split_vertices)
 
 

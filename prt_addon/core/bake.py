@@ -91,6 +91,9 @@ class Receiver:
     # (V, 3) unit tangents from each vertex towards the inside of its faces, zero where there is no inside:
     # a vertex on a seam where another surface stands is baked as seen from its own faces' side.
     inward: np.ndarray | None = None
+    # (V,) rows with the same label share their rays (core.corners.ray_groups: the corner points of one vertex
+    # whose hemispheres overlap); None: every row casts its own.
+    ray_groups: np.ndarray | None = None
 
     @staticmethod
     def key_for(name: str) -> int:
@@ -127,7 +130,7 @@ class Occluders:
 class ChunkResult:
     transfer: np.ndarray   # (c, n²) float64
     std_error: np.ndarray  # (c,) norm of the coefficients' standard error
-    rays: np.ndarray       # (c,) rays cast per vertex
+    rays: np.ndarray       # (c,) rays cast from each vertex (its estimate also uses its ray group's)
     skipped: np.ndarray    # (c,) bool: exact without rays (provably unoccluded, or in contact)
     records: interreflect.HitRecords | None = None  # interreflected mode: blocked rays' hits (chunk-local rows)
 
@@ -191,20 +194,37 @@ class RayCaster:
         per_ray_origins = chain.from_iterable(repeat(origin, k) for origin in map(tuple, origins.tolist()))
         return map(self.tree.ray_cast, per_ray_origins, zip(xs, ys, zs), repeat(self.max_distance))
 
-    def touched_surfaces(self, points: np.ndarray, normals: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def touched_surfaces(self, surface, normals: np.ndarray, inward: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(normals (c, 3), heights (c,)): of the occluder face within the ray offset of each point that faces it
         most, with the point on its front side, its normal and the point's height above it; zero normal where
-        there is none. The points lie a little inside their own faces: their own and adjacent faces face the
-        same way or lie behind them (a crease, a knife edge) and never count."""
-        touched, heights = np.zeros_like(normals), np.zeros(len(points))
-        near = map(self.tree.find_nearest_range, map(tuple, points.tolist()), repeat(self.offset))
-        for row, (faces, point, normal) in enumerate(zip(near, points, normals)):
+        there is none. The points are tested a little inside their own faces, at `surface` (c, 3) + offset ·
+        `inward`: their own and adjacent faces face the same way or lie behind them (a crease, a knife edge) and
+        never count. Only points with a facing face within two offsets of their surface position are tested
+        one by one: the corner points of one vertex share that first search."""
+        touched, heights = np.zeros_like(normals), np.zeros(len(surface))
+        for row in self._may_touch(surface, normals):
+            point, normal = surface[row] + self.offset * inward[row], normals[row]
             found = [(face_normal.dot(normal), face_normal, np.dot(point - np.asarray(nearest), face_normal))
-                     for nearest, face_normal, _, _ in faces]
+                     for nearest, face_normal, _, _ in self.tree.find_nearest_range(tuple(point), self.offset)]
             facing = [face for face in found if face[0] < FACING_COSINE and face[2] > -ON_SURFACE * self.offset]
             if facing:
                 _, touched[row], heights[row] = min(facing, key=itemgetter(0))
         return touched, heights
+
+    def _may_touch(self, surface, normals) -> np.ndarray:
+        """Rows with some occluder face within two offsets of their surface position that faces their normal."""
+        places, place_of_row = np.unique(surface, axis=0, return_inverse=True)
+        near = [[tuple(face_normal) for _, face_normal, _, _ in found] for found in
+                map(self.tree.find_nearest_range, map(tuple, places.tolist()), repeat(2.0 * self.offset))]
+        counts = np.array([len(faces) for faces in near])
+        face_normals = np.array(list(chain.from_iterable(near)), dtype=np.float64).reshape(-1, 3)
+        first_face = np.r_[0, np.cumsum(counts)[:-1]]
+        per_row = counts[place_of_row.ravel()]
+        row = np.repeat(np.arange(len(surface)), per_row)
+        face = np.repeat(first_face[place_of_row.ravel()] - np.r_[0, np.cumsum(per_row)[:-1]], per_row) \
+            + np.arange(per_row.sum())
+        facing = np.einsum("ij,ij->i", face_normals[face], normals[row]) < FACING_COSINE
+        return np.unique(row[facing])
 
     def front_hits(self, origins, directions, triangle, distance):
         """(barycentric (H, 3), front (H,) bool) for hits: the light leaving a surface is known on its front."""
@@ -214,8 +234,9 @@ class RayCaster:
         return interreflect.barycentric(points, corners), np.einsum("ij,ij->i", normals, directions) < 0
 
 
-def shadowed_chunk(caster: RayCaster, positions, normals, inward, keys, settings: BakeSettings):
-    """Generator: bakes one chunk, yielding the rays cast after each round; returns a ChunkResult."""
+def shadowed_chunk(caster: RayCaster, positions, normals, inward, keys, settings: BakeSettings, labels=None):
+    """Generator: bakes one chunk, yielding the rays cast after each round; returns a ChunkResult. Rows with
+    the same `labels` entry share their rays (None: each row casts its own)."""
     order, replicates = settings.order, settings.replicates
     positions = positions - caster.center
     count = len(positions)
@@ -223,11 +244,12 @@ def shadowed_chunk(caster: RayCaster, positions, normals, inward, keys, settings
     has_surface = np.abs(normals).sum(-1) > 0
     # Contact is tested a little inside the point's own faces, so that a surface merely touching the vertex does
     # not count; it overrides the hull test, which a coplanar surface below the point cannot fail.
-    touched, heights = caster.touched_surfaces(positions + caster.offset * inward, normals)
+    touched, heights = caster.touched_surfaces(positions, normals, inward)
     facing = np.einsum("ij,ij->i", touched, normals) < 0
     contact = has_surface & facing & (heights <= ON_SURFACE * caster.offset)
     skipped = has_surface & (provably_unoccluded(positions, normals, caster.hull, caster.offset) | contact)
-    rays = np.zeros(count, dtype=np.int64)
+    rays = np.zeros(count, dtype=np.int64)  # cast from each row
+    used = np.zeros(count, dtype=np.int64)  # each row's estimate rests on: its group's
     tangents, bitangents = sampling.orthonormal_basis(np.where(has_surface[:, None], normals, [0.0, 0.0, 1.0]))
     frames = np.stack([tangents, bitangents, normals], axis=1)
     # A point touching a surface at an angle starts its rays in front of both (along the bisector of the two
@@ -235,39 +257,55 @@ def shadowed_chunk(caster: RayCaster, positions, normals, inward, keys, settings
     lifted = normals + touched
     lifted /= np.maximum(np.linalg.norm(lifted, axis=1, keepdims=True), 1e-12)
     origins = positions + caster.offset * (np.where(facing[:, None], lifted, normals) + inward)
+    sets = ray_sets(labels, np.flatnonzero(has_surface & ~skipped))
+    for members in sets:
+        if members.shape[1] > 1:
+            origins[members] = _shared_origins(origins[members], positions[members[:, 0]], normals[members],
+                                               caster.offset)[:, None]
     cones, flat_blocked = _flat_shadows(caster, origins, normals, order)
-    rounds = []  # (vertices, rays per vertex, transfer mean, transfer variance), combined below
-    hits = [] if settings.mode == "interreflected" else None  # (chunk vertex, triangle, barycentric) per round
-    groups = [(settings.points_per_replicate, np.flatnonzero(has_surface & ~skipped))]
-    round_index = 0
-    for _ in range(MAX_ROUNDS):
-        for per_replicate, group in groups:
-            if not len(group):
-                continue
+    rounds = []  # (rows, rays per row, transfer mean, transfer variance), combined below
+    hits = [] if settings.mode == "interreflected" else None  # (chunk row, triangle, barycentric, weight)
+    plan = [(settings.points_per_replicate, members) for members in sets]
+    for round_index in range(MAX_ROUNDS):
+        for per_replicate, members in plan:
+            group_rays = replicates * per_replicate
             # A round casts at most RAYS_PER_BATCH rays at a time: bounded memory, and progress (and Esc) between
-            # batches. Every vertex keeps its own random streams, so batching never changes a result.
-            batch = max(1, RAYS_PER_BATCH // (replicates * per_replicate))
-            for vertices in np.array_split(group, np.arange(batch, len(group), batch)):
-                flat = None if cones is None else cones[vertices], flat_blocked[vertices]
-                mean, variance, round_hits = _blocked_round(caster, origins[vertices], frames[vertices],
-                                                            unshadowed[vertices], flat, keys[vertices],
-                                                            round_index, per_replicate, settings)
+            # batches. Every group keeps its own random streams, so batching never changes a result.
+            batch = max(1, RAYS_PER_BATCH // group_rays)
+            for part in np.array_split(members, np.arange(batch, len(members), batch)):
+                flat = None if cones is None else cones[part], flat_blocked[part]
+                mean, variance, round_hits = _blocked_round(caster, origins[part[:, 0]], frames[part],
+                                                            unshadowed[part], flat, keys[part[:, 0]], round_index,
+                                                            per_replicate, settings)
+                rows = part.ravel()
                 if hits is not None:
-                    hits.append((vertices[round_hits[0]], *round_hits[1:]))
-                rounds.append((vertices, replicates * per_replicate, mean, variance))
-                rays[vertices] += replicates * per_replicate
-                yield int(len(vertices) * replicates * per_replicate)
-            round_index += 1
+                    hits.append((rows[round_hits[0]], *round_hits[1:]))
+                rounds.append((rows, group_rays, mean.reshape(len(rows), -1), variance.reshape(len(rows), -1)))
+                used[rows] += group_rays
+                rays[part[:, 0]] += group_rays  # a group's rays are counted at its first row
+                yield int(len(part) * group_rays)
         if settings.target_error <= 0.0:
             break
-        _, error = _combine(rounds, rays, count, order)
-        groups = _next_rounds(error, rays, settings)
-        if not groups:
+        _, error = _combine(rounds, used, count, order)
+        plan = [(size, members[chosen]) for members in sets
+                for size, chosen in _next_rounds(error[members].max(1), used[members[:, 0]], settings)]
+        if not plan:
             break
-    transfer, error = _combine(rounds, rays, count, order)
-    transfer[rays == 0] = unshadowed[rays == 0]  # exact: provably unoccluded, or no surface (zero)
+    transfer, error = _combine(rounds, used, count, order)
+    transfer[used == 0] = unshadowed[used == 0]  # exact: provably unoccluded, or no surface (zero)
     transfer[contact] = 0.0  # exact: every direction is blocked by the surface it rests on
-    return ChunkResult(transfer, error, rays, skipped, _records(hits, rays))
+    return ChunkResult(transfer, error, rays, skipped, _records(hits, used))
+
+
+def ray_sets(labels, rows) -> list[np.ndarray]:
+    """The ray groups among `rows`: one (g, k) array of rows per group size k (every row alone without labels)."""
+    if labels is None:
+        return [rows[:, None]] if len(rows) else []
+    ordered = rows[np.argsort(labels[rows], kind="stable")]
+    group_labels = labels[ordered]
+    starts = np.flatnonzero(np.r_[True, group_labels[1:] != group_labels[:-1]])
+    sizes = np.diff(np.r_[starts, len(ordered)])
+    return [ordered[starts[sizes == size][:, None] + np.arange(size)] for size in np.unique(sizes)]
 
 
 def _flat_shadows(caster, origins, normals, order):
@@ -281,14 +319,14 @@ def _flat_shadows(caster, origins, normals, order):
     return polygons.cones_and_blocked_transfer(order, origins, normals, seen)
 
 
-def _records(hits, rays):
-    """Every ray of a vertex carries the same weight in its estimate, rounds included: 1 / its rays."""
+def _records(hits, used):
+    """A ray's weight in a row's estimate, rounds included: its balance weight ÷ the rays the row's estimate uses."""
     if hits is None:
         return None
     if not hits:
         return interreflect.HitRecords.empty()
-    vertex, triangle, barycentric = (np.concatenate(part) for part in zip(*hits))
-    return interreflect.HitRecords(vertex, triangle, barycentric, 1.0 / rays[vertex])
+    row, triangle, barycentric, weight = (np.concatenate(part) for part in zip(*hits))
+    return interreflect.HitRecords(row, triangle, barycentric, weight / used[row])
 
 
 def _next_rounds(error, rays, settings: BakeSettings):
@@ -325,82 +363,141 @@ def _combine(rounds, rays, count, order):
     return estimate, np.sqrt(variance.sum(1))
 
 
-def _blocked_round(caster, origins, frames, unshadowed, flat, keys, round_index, per_replicate, settings):
-    """One round: R replicates of a shifted lattice per vertex. Returns the mean and variance over replicates
-    of the transfer estimate, and the hits (interreflected mode).
+def _shared_origins(origins, positions, normals, offset):
+    """(g, 3) one ray origin for each group of rows (g, k) at one vertex (`positions` (g, 3)): the mean of the rows'
+    own origins (g, k, 3), raised along the mean normal until it is at least `offset` above every row's tangent
+    plane (normals (g, k, 3)), as each row's own origin is."""
+    steps = (origins - positions[:, None]).mean(axis=1)
+    mean_normal = _unit(normals.sum(axis=1))
+    heights = np.einsum("gd,gkd->gk", steps, normals)
+    climbs = np.einsum("gd,gkd->gk", mean_normal, normals)  # > 0: the rows' normals are within 90° of each other
+    raise_by = np.maximum((offset - heights) / np.maximum(climbs, 1e-3), 0.0).max(axis=1)
+    return positions + steps + raise_by[:, None] * mean_normal
 
-    Each replicate estimates T = β·T_unshadowed + mean((V − β)·Y), a control variate whose coefficient β is
-    the vertex's visible fraction this round: β = 1 samples only blocked light (exact for an open vertex),
-    β = 0 only visible light (exact for a buried one), in between it tracks the optimal coefficient.
+
+def _unit(vectors):
+    return vectors / np.maximum(np.linalg.norm(vectors, axis=-1, keepdims=True), 1e-300)
+
+
+def _blocked_round(caster, origins, frames, unshadowed, flat, keys, round_index, per_replicate, settings):
+    """One round for g ray groups of k rows (origins (g, 3), keys (g,), the rest (g, k, ...)): each group casts R
+    replicates of its own shifted lattice from its origin. Returns the mean and variance over replicates of each
+    row's transfer estimate (g, k, n²), and the hits (interreflected mode).
+
+    A group of one samples its row's cosine lobe. A larger group samples the cosine lobe of its mean normal n̄,
+    lowered to cover every row's hemisphere (the cap n̄·ω ≥ s); each row weighs each direction by its own cosine
+    density over the cap's, W = (1 − s)²·(n·ω)₊ / (n̄·ω − s): unbiased, and close to 1 where the normals nearly agree,
+    so all rows of a vertex share one lattice at the cost of one row. A row estimates
+    T = β·T_unshadowed + mean(W·((1 − β)·Y − (1 − V)·Y)), a control variate whose coefficient β is its visible
+    fraction this round: β = 1 samples only blocked light (exact for an open vertex), β = 0 only visible light
+    (exact for a buried one), in between it tracks the optimal coefficient.
     Flat polygons (`flat`: their cone planes and the transfer G they block) are exact: a ray counts as blocked
     only for what they do not explain, 1 − V − g with g its hits on them, and G is subtracted; unbiased for any
     polygon, and P's edges add no noise where P really is occluder geometry."""
     replicates, order = settings.replicates, settings.order
-    c, rays = len(keys), replicates * per_replicate
-    stream = keys[:, None] * STREAMS_PER_VERTEX + round_index * replicates + np.arange(replicates)[None, :]
-    shifts = sampling.hash_uniform(settings.seed, stream.reshape(-1), 2).reshape(c, replicates, 2)
-    world = sampling.cosine_lattice_directions(sampling.fibonacci_lattice(per_replicate), shifts, frames[:, None])
-    world = world.reshape(c, rays, 3)  # (c, R, k, 3) → (c, R·k, 3), still a view
-    if settings.mode == "interreflected":
-        occluded, triangle, distance = caster.occluded(origins, world, hits=True)
-        round_hits = _round_hits(caster, origins, world, occluded, triangle, distance)
+    groups, size = frames.shape[:2]
+    normals = frames[:, :, 2]
+    stream = keys[:, None] * STREAMS_PER_VERTEX + round_index * replicates + np.arange(replicates)
+    shifts = sampling.hash_uniform(settings.seed, stream.reshape(-1), 2).reshape(groups, replicates, 2)
+    points = sampling.fibonacci_lattice(per_replicate)
+    if size == 1:
+        cast = sampling.cosine_lattice_directions(points, shifts, frames[:, 0, None])
     else:
-        occluded, round_hits = caster.occluded(origins, world), None
+        mean_normal = _unit(normals.sum(axis=1))
+        closest = np.maximum(np.einsum("gd,gkd->gk", mean_normal, normals).min(1), 0.0)
+        floor = -np.sqrt(1.0 - closest * closest)  # the lowest direction of the rows' hemispheres
+        cap_frames = np.stack([*sampling.orthonormal_basis(mean_normal), mean_normal], axis=1)
+        cast = sampling.cosine_lattice_directions(points, shifts, cap_frames[:, None], floor[:, None])
+    directions = cast  # (g, R, m, 3)
+    cast = cast.reshape(groups, replicates * per_replicate, 3)  # a view: the rays of each group
+    if settings.mode == "interreflected":
+        occluded, triangle, distance = caster.occluded(origins, cast, hits=True)
+    else:
+        occluded = caster.occluded(origins, cast)
+    if size == 1:
+        weights = np.ones((groups, 1, replicates, per_replicate))
+    else:
+        heights = np.einsum("gd,grmd->grm", mean_normal, directions) - floor[:, None, None]
+        cosines = np.maximum(np.einsum("gkd,grmd->gkrm", normals, directions), 0.0)
+        weights = cosines * ((1.0 - floor) ** 2)[:, None, None, None] / np.maximum(heights, 1e-300)[:, None]
+    blocked = occluded.reshape(groups, 1, replicates, per_replicate)
     cones, flat_blocked = flat
     if cones is not None:
-        occluded = occluded - polygons.hits(world, cones)
-    all_rays, blocked = _replicate_means(world, occluded, order, replicates)
-    beta = 1.0 - occluded.mean(axis=1)[:, None, None]
-    estimate = beta * unshadowed[:, None, :] + (1.0 - beta) * all_rays - blocked  # (c, R, n²)
-    estimate -= flat_blocked[:, None, :]
-    return estimate.mean(1), estimate.var(1, ddof=1) / replicates, round_hits
+        seen = np.broadcast_to(cast[:, None], (groups, size, *cast.shape[1:])).reshape(groups * size, -1, 3)
+        flat_hits = polygons.hits(seen, cones.reshape(groups * size, *cones.shape[2:]))
+        blocked = blocked - flat_hits.reshape(weights.shape)
+    blocked_weights = weights * blocked
+    all_rays, blocked_rays = _weighted_means(directions, weights, blocked_weights, order)
+    beta = 1.0 - blocked_weights.mean(axis=(2, 3))[..., None, None]  # (g, k, 1, 1)
+    estimate = beta * unshadowed[:, :, None] + (1.0 - beta) * all_rays - blocked_rays  # (g, k, R, n²)
+    estimate -= flat_blocked[:, :, None]
+    round_hits = (_round_hits(caster, origins, cast, occluded, triangle, distance, weights)
+                  if settings.mode == "interreflected" else None)
+    return estimate.mean(2), estimate.var(2, ddof=1) / replicates, round_hits
 
 
-def _replicate_means(world, occluded, order, replicates):
-    """Per vertex and replicate: mean of Y over all rays and of (1 − V)·Y, both as one small matrix product
-    per replicate, a few replicates at a time so memory stays bounded at high orders and ray counts."""
-    c, rays = occluded.shape
-    per_replicate, coefficients = rays // replicates, order * order
-    weights = np.empty((c * replicates, 2, per_replicate))  # rows: all rays, blocked rays
-    weights[:, 0] = 1.0 / per_replicate
-    np.multiply(occluded.reshape(-1, per_replicate), 1.0 / per_replicate, out=weights[:, 1])
-    directions = world.reshape(c * replicates, per_replicate, 3)
-    means = np.empty((c * replicates, 2, coefficients))
+def _weighted_means(directions, weights, blocked_weights, order):
+    """Per row and replicate: the means of W·Y and of W·(1 − V)·Y over its group's directions (g, R, m, 3), as one
+    small matrix product per group and replicate, a few at a time so memory stays bounded at high orders and ray
+    counts. Both (g, k, R, n²)."""
+    groups, replicates, per_replicate = directions.shape[:3]
+    size, coefficients = weights.shape[1], order * order
+    rows = np.concatenate([weights, blocked_weights], axis=1)  # (g, 2k, R, m)
+    rows = np.moveaxis(rows, 2, 1).reshape(groups * replicates, 2 * size, per_replicate) * (1.0 / per_replicate)
+    flat_directions = directions.reshape(groups * replicates, per_replicate, 3)
+    means = np.empty((groups * replicates, 2 * size, coefficients))
     step = max(1, REPLICATE_VALUES_AT_ONCE // (per_replicate * coefficients))
-    for first in range(0, c * replicates, step):
+    for first in range(0, groups * replicates, step):
         part = slice(first, first + step)
-        basis = sh.evaluate_components(order, directions[part].reshape(-1, 3))
-        np.matmul(weights[part], basis.T.reshape(-1, per_replicate, coefficients), out=means[part])
-    means = means.reshape(c, replicates, 2, coefficients)
-    return means[:, :, 0], means[:, :, 1]
+        basis = sh.evaluate_components(order, flat_directions[part].reshape(-1, 3))
+        np.matmul(rows[part], basis.T.reshape(-1, per_replicate, coefficients), out=means[part])
+    means = np.moveaxis(means.reshape(groups, replicates, 2, size, coefficients), 1, 3)  # (g, 2, k, R, n²)
+    return means[:, 0], means[:, 1]
 
 
-def _round_hits(caster, origins, world, occluded, triangle, distance):
-    """(vertex row, triangle, barycentric) of the blocked rays that hit a front face."""
-    row, ray = np.nonzero(occluded)
-    barycentric, front = caster.front_hits(origins[row], world[row, ray], triangle[row, ray], distance[row, ray])
-    return row[front], triangle[row, ray][front], barycentric[front]
+def _round_hits(caster, origins, cast, occluded, triangle, distance, weights):
+    """(row in g·k, triangle, barycentric, weight) for every blocked ray that hit a front face, once for each row of
+    the casting group whose estimate it enters, with that row's weight for it."""
+    group, ray = np.nonzero(occluded)
+    barycentric, front = caster.front_hits(origins[group], cast[group, ray], triangle[group, ray],
+                                           distance[group, ray])
+    group, ray, triangle, barycentric = group[front], ray[front], triangle[group, ray][front], barycentric[front]
+    size = weights.shape[1]
+    hit_weights = weights.reshape(len(weights), size, -1)[group, :, ray]  # (H, k)
+    hit, member = np.nonzero(hit_weights > 0.0)
+    return group[hit] * size + member, triangle[hit], barycentric[hit], hit_weights[hit, member]
 
 
-def vertex_keys(receiver: Receiver, start: int, stop: int) -> np.ndarray:
-    """Per-vertex random stream ids: 20 bits of the object's key above 30 bits of vertex index."""
-    return (np.int64(receiver.key & 0xFFFFF) << np.int64(30)) + np.arange(start, stop, dtype=np.int64)
+def vertex_keys(receiver: Receiver, rows: np.ndarray) -> np.ndarray:
+    """Per-row random stream ids: 20 bits of the object's key above 30 bits of row index."""
+    return (np.int64(receiver.key & 0xFFFFF) << np.int64(30)) + np.asarray(rows, dtype=np.int64)
 
 
-def chunk_ranges(vertex_counts: list[int]) -> list[tuple[int, int, int]]:
-    """(receiver index, start, stop) for fixed-size chunks over every receiver."""
-    return [(index, start, min(start + CHUNK_VERTICES, count))
-            for index, count in enumerate(vertex_counts)
-            for start in range(0, count, CHUNK_VERTICES)]
+def chunk_rows(receivers) -> list[tuple[int, np.ndarray]]:
+    """(receiver index, rows) for chunks of CHUNK_VERTICES ray groups (rows, without groups) over every receiver,
+    fixed by the receivers alone: a group's rows share a chunk, and a chunk's rounds cast about as many rays
+    whether its groups are single rows or the corner points of split vertices."""
+    chunks = []
+    for index, receiver in enumerate(receivers):
+        count = len(receiver.positions)
+        if receiver.ray_groups is None:
+            order, starts = np.arange(count), np.arange(count)
+        else:
+            order = np.argsort(receiver.ray_groups, kind="stable")
+            labels = receiver.ray_groups[order]
+            starts = np.flatnonzero(np.r_[True, labels[1:] != labels[:-1]])
+        chunks.extend((index, rows) for rows in np.split(order, starts[CHUNK_VERTICES::CHUNK_VERTICES]))
+    return chunks
 
 
-def bake_chunk(caster, receiver: Receiver, start: int, stop: int, settings: BakeSettings):
-    """Generator over one chunk in either mode; yields rays cast, returns a ChunkResult."""
-    normals = receiver.normals[start:stop]
+def bake_chunk(caster, receiver: Receiver, rows: np.ndarray, settings: BakeSettings):
+    """Generator over one chunk (the receiver's `rows`) in either mode; yields rays cast, returns a ChunkResult."""
+    normals = receiver.normals[rows]
     if settings.mode == "unshadowed" or caster is None:
-        count = stop - start
+        count = len(rows)
         return ChunkResult(unshadowed_transfer(settings.order, normals), np.zeros(count),
                            np.zeros(count, dtype=np.int64), np.zeros(count, dtype=bool))
-    keys = vertex_keys(receiver, start, stop)
-    inward = np.zeros_like(normals) if receiver.inward is None else receiver.inward[start:stop]
-    return (yield from shadowed_chunk(caster, receiver.positions[start:stop], normals, inward, keys, settings))
+    keys = vertex_keys(receiver, rows)
+    inward = np.zeros_like(normals) if receiver.inward is None else receiver.inward[rows]
+    labels = None if receiver.ray_groups is None else receiver.ray_groups[rows]
+    return (yield from shadowed_chunk(caster, receiver.positions[rows], normals, inward, keys, settings, labels))

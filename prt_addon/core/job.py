@@ -86,7 +86,7 @@ class TransferJob(Job):
         self.min_rays_for_workers = FORK_MIN_RAYS if worker_command == FORK else WORKER_MIN_RAYS
         self.worker_start_s = WORKER_START_S  # spawned workers: this process takes the share they start late
         self.owners = owners
-        self.chunks = bake.chunk_ranges([len(r.positions) for r in receivers])
+        self.chunks = bake.chunk_rows(receivers)
         self.total_vertices = sum(len(r.positions) for r in receivers)
         self._vertex_offsets = np.cumsum([0] + [len(r.positions) for r in receivers])
         if settings.mode == "interreflected" and occluders.solved_vertices != self.total_vertices:
@@ -138,14 +138,14 @@ class TransferJob(Job):
         self.finished = False
 
     def _store(self, chunk_index, result: bake.ChunkResult):
-        receiver_index, start, stop = self.chunks[chunk_index]
-        self._transfer[receiver_index][start:stop] = result.transfer
-        self._std_error[receiver_index][start:stop] = result.std_error
-        self._rays[receiver_index][start:stop] = result.rays
-        self._skipped[receiver_index][start:stop] = result.skipped
+        receiver_index, rows = self.chunks[chunk_index]
+        self._transfer[receiver_index][rows] = result.transfer
+        self._std_error[receiver_index][rows] = result.std_error
+        self._rays[receiver_index][rows] = result.rays
+        self._skipped[receiver_index][rows] = result.skipped
         if result.records is not None:
-            offset = self._vertex_offsets[receiver_index] + start
-            self.records.append(interreflect.HitRecords(result.records.vertex + offset, result.records.triangle,
+            solved = self._vertex_offsets[receiver_index] + rows[result.records.vertex]
+            self.records.append(interreflect.HitRecords(solved, result.records.triangle,
                                                          result.records.barycentric, result.records.weight))
 
     def _run_here(self):
@@ -155,15 +155,15 @@ class TransferJob(Job):
             yield from self._bake_chunk_here(caster, chunk_index)
 
     def _bake_chunk_here(self, caster, chunk_index):
-        receiver_index, start, stop = self.chunks[chunk_index]
-        work = bake.bake_chunk(caster, self.receivers[receiver_index], start, stop, self.settings)
+        receiver_index, rows = self.chunks[chunk_index]
+        work = bake.bake_chunk(caster, self.receivers[receiver_index], rows, self.settings)
         while True:
             try:
                 self.rays += next(work)
                 yield
             except StopIteration as finished:
                 self._store(chunk_index, finished.value)
-                self.done_vertices += stop - start
+                self.done_vertices += len(rows)
                 return
 
     def _run_workers(self):

@@ -33,8 +33,9 @@ def save_job(path, receivers, occluders, settings: bake.BakeSettings):
     for index, receiver in enumerate(receivers):
         arrays[f"positions_{index}"] = receiver.positions
         arrays[f"normals_{index}"] = receiver.normals
-        if receiver.inward is not None:
-            arrays[f"inward_{index}"] = receiver.inward
+        for name in ("inward", "ray_groups"):
+            if getattr(receiver, name) is not None:
+                arrays[f"{name}_{index}"] = getattr(receiver, name)
     meta = {"settings": settings.__dict__, "receivers": [[r.name, r.key] for r in receivers],
             "solved_vertices": occluders.solved_vertices}
     np.savez(path, meta=np.array(json.dumps(meta)), **arrays)
@@ -47,7 +48,8 @@ def load_job(path):
         occluders = bake.Occluders(data["occluder_vertices"], data["occluder_triangles"], data["occluder_hull"], flat,
                                    meta["solved_vertices"])
         receivers = [bake.Receiver(name, data[f"positions_{i}"], data[f"normals_{i}"], key,
-                                   data[f"inward_{i}"] if f"inward_{i}" in data else None)
+                                   *(data[f"{part}_{i}"] if f"{part}_{i}" in data else None
+                                     for part in ("inward", "ray_groups")))
                      for i, (name, key) in enumerate(meta["receivers"])]
     return receivers, occluders, bake.BakeSettings(**meta["settings"])
 
@@ -70,11 +72,11 @@ def _load_records(data, slot):
 def bake_chunks(caster, receivers, settings, chunk_indices, out_file, stream):
     """A worker's work: bakes the chunks it is given (a list, or a shared queue it takes them from) with a
     progress line on `stream` after each, then saves the results and which chunks they are."""
-    chunks = bake.chunk_ranges([len(r.positions) for r in receivers])
+    chunks = bake.chunk_rows(receivers)
     arrays, done = {}, []
     for slot, chunk_index in enumerate(chunk_indices):
-        receiver_index, start, stop = chunks[chunk_index]
-        work = bake.bake_chunk(caster, receivers[receiver_index], start, stop, settings)
+        receiver_index, rows = chunks[chunk_index]
+        work = bake.bake_chunk(caster, receivers[receiver_index], rows, settings)
         rays = 0
         while True:
             try:
@@ -88,7 +90,7 @@ def bake_chunks(caster, receivers, settings, chunk_indices, out_file, stream):
             for name in ("vertex", "triangle", "barycentric", "weight"):
                 arrays[f"records_{name}_{slot}"] = getattr(result.records, name)
         done.append(chunk_index)
-        print(f"PRT-PROGRESS {stop - start} {rays}", file=stream, flush=True)
+        print(f"PRT-PROGRESS {len(rows)} {rays}", file=stream, flush=True)
     np.savez(out_file, chunks=np.array(done, dtype=np.int64), **arrays)
 
 

@@ -71,9 +71,13 @@ def cranley_patterson(points, shifts):
     return shifted
 
 
-def cosine_lattice_directions(points, shifts, frames):
+def cosine_lattice_directions(points, shifts, frames, floor=None):
     """Unit directions (..., n, 3): the lattice `points` (n, 2) under every Cranley-Patterson shift (..., 2),
     mapped to the cosine-weighted hemisphere of each frame (..., 3, 3) whose rows are tangent, bitangent, normal.
+
+    With `floor` s (..., ≤ 0), the directions fill the larger cap z ≥ s with density (z − s) / (π (1 − s)²),
+    z = normal·d: the hemisphere's cosine lobe shifted down by −s (a group of nearby normals shares such a cap,
+    see core.bake). Its height is s + (1 − s)·cos θ of the hemisphere's map, so the strata stay equal-weight rings.
 
     Polar map (uniform on the disc, lifted to the hemisphere): the first coordinate is sin²θ, so its strata are
     equal-cosine-weight rings; the second is the azimuth. Shifting the azimuth turns the tangent frame, so cos and
@@ -83,7 +87,12 @@ def cosine_lattice_directions(points, shifts, frames):
     points, shifts, frames = (np.asarray(a, dtype=np.float64) for a in (points, shifts, frames))
     sin_squared = cranley_patterson(points[:, :1], shifts[..., :1])[..., 0]  # (..., n)
     height = np.sqrt(1.0 - sin_squared)
-    radius = np.sqrt(sin_squared, out=sin_squared)
+    if floor is None:
+        radius = np.sqrt(sin_squared, out=sin_squared)
+    else:
+        floor = np.asarray(floor, dtype=np.float64)[..., None]
+        height = floor + (1.0 - floor) * height
+        radius = np.sqrt(np.maximum(1.0 - height * height, 0.0))
     azimuth, turn = 2.0 * np.pi * points[:, 1], 2.0 * np.pi * shifts[..., 1:]
     cos_turn, sin_turn = np.cos(turn), np.sin(turn)
     tangent = cos_turn * frames[..., 0, :] + sin_turn * frames[..., 1, :]  # (..., 3)

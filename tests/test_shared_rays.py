@@ -1,0 +1,101 @@
+"""The corner points of one vertex share their rays (core.corners.ray_groups, core.bake._blocked_round): each
+point's estimate stays unbiased and its error estimate honest, against polygon quadrature that does not use the
+code under test."""
+
+import bpy  # noqa: F401  (mathutils comes with bpy)
+import numpy as np
+import pytest
+
+from quadrature import polygon_transfer
+
+from prt_addon.core import bake, corners, interreflect, job
+
+# Three corner normals of one vertex, within 60° of the first (they share), and one beyond (it casts alone).
+NORMALS = np.array([[0.0, 0.0, 1.0], [np.sin(0.6), 0.0, np.cos(0.6)], [0.0, -np.sin(0.9), np.cos(0.9)]])
+ROOF = np.array([[-0.4, -1.0, 0.8], [1.2, -1.0, 0.8], [1.2, 0.6, 1.1], [-0.4, 0.6, 1.1]])  # tilted, off-centre
+
+
+def roof_occluders(as_polygon=False):
+    triangles = np.array([[0, 1, 2], [0, 2, 3]])
+    return bake.Occluders(ROOF, triangles, ROOF.copy(), [ROOF] if as_polygon else [])
+
+
+def shared_vertices(count):
+    """`count` independent vertices at the origin, each split into the three NORMALS that share one ray group."""
+    normals = np.tile(NORMALS, (count, 1))
+    return bake.Receiver("split", np.zeros((3 * count, 3)), normals, 17, None, np.repeat(np.arange(count), 3))
+
+
+def truth(order):
+    """Quadrature: the unshadowed transfer minus what the roof blocks, per normal."""
+    return np.array([bake.unshadowed_transfer(order, n[None])[0] - polygon_transfer(order, np.zeros(3), n, ROOF)
+                     for n in NORMALS])
+
+
+def bake_points(receiver, occluders, **settings):
+    the_job = job.TransferJob([receiver], occluders, bake.BakeSettings(**settings))
+    return the_job.run()[0]
+
+
+def test_ray_groups_join_the_corner_normals_near_their_vertex_normal():
+    point_vertices = np.array([0, 1, 0, 0, 1])
+    normals = np.array([[0, 0, 1.0], [1.0, 0, 0], [0, np.sin(0.9), np.cos(0.9)], [0, 1.0, 0], [0, 0, -1.0]])
+    # 0.9 rad = 52° from its vertex's normal: shares; 90° and 180°: alone.
+    np.testing.assert_array_equal(corners.ray_groups(point_vertices, normals, 2), [0, 1, 0, 3, 4])
+
+
+@pytest.mark.parametrize("as_polygon", [False, True], ids=["rays", "closed-form roof"])
+def test_shared_rays_are_unbiased_and_their_error_honest(as_polygon):
+    """400 vertices, each three corner points casting one group's rays: every point's mean matches quadrature, the
+    actual errors match the estimated ones, and the group cast as many rays as one point alone would."""
+    count, order = 400, 3
+    result = bake_points(shared_vertices(count), roof_occluders(as_polygon), order=order, samples=64)
+    assert result.rays.sum() == count * 64
+    expected = truth(order)
+    transfer = result.transfer.reshape(count, 3, -1)
+    spread = transfer.std(0) / np.sqrt(count)
+    assert np.all(np.abs(transfer.mean(0) - expected) <= 4 * spread + 2e-4), (transfer.mean(0) - expected, spread)
+    z = np.linalg.norm(transfer - expected, axis=2) / np.maximum(result.std_error.reshape(count, 3), 1e-12)
+    if as_polygon:  # the roof is explained exactly: no noise left to be honest about
+        assert result.std_error.max() < 1e-5
+    else:
+        assert 0.7 <= np.sqrt(np.mean(z ** 2)) <= 1.4
+        # Teeth: the tilted points' transfer differs from the vertex normal's by far more than the tolerance.
+        assert np.abs(expected[1] - expected[0]).max() > 20 * spread.max()
+
+
+def test_shared_rays_cost_about_one_point_for_the_accuracy_of_each():
+    """At equal rays per point, sharing three points' rays gives each nearly the error of a point alone while
+    casting a third of the rays."""
+    count = 200
+    alone = shared_vertices(count)
+    alone.ray_groups = None
+    own, shared = (bake_points(r, roof_occluders(), order=4, samples=128) for r in (alone, shared_vertices(count)))
+    assert shared.rays.sum() * 3 == own.rays.sum()
+    ratio = np.sqrt(np.mean(shared.rel_error ** 2) / np.mean(own.rel_error ** 2))
+    assert ratio < 1.35, ratio
+
+
+def test_a_shared_group_hands_each_point_its_hits_with_unbiased_weights():
+    """Interreflections gather over the hit records: inside a closed box every ray hits a front face, so each
+    point's weights sum to an estimate of its cosine-weighted hemisphere, 1, exactly 1 for a point alone."""
+    half = 1.0
+    corners_ = np.array([[x, y, z] for x in (-half, half) for y in (-half, half) for z in (-half, half)])
+    faces = [[0, 1, 3, 2], [4, 6, 7, 5], [0, 4, 5, 1], [2, 3, 7, 6], [0, 2, 6, 4], [1, 5, 7, 3]]
+    triangles = np.array([t for f in faces for t in ([f[0], f[1], f[2]], [f[0], f[2], f[3]])])
+    a, b, c = (corners_[triangles[:, i]] for i in range(3))
+    outward = np.einsum("ij,ij->i", np.cross(b - a, c - a), a + b + c) > 0
+    triangles[outward] = triangles[outward][:, ::-1]  # every face faces into the box
+    count = 50
+    positions = np.tile([0.1, -0.2, -0.5], (3 * count, 1))
+    receiver = bake.Receiver("inside", positions, np.tile(NORMALS, (count, 1)), 3, None,
+                             np.repeat(np.arange(count), 3))
+    vertices = np.vstack([positions, corners_])  # the solved rows first, as interreflection needs
+    occluders = bake.Occluders(vertices, triangles + len(positions), corners_.copy(), solved_vertices=len(positions))
+    the_job = job.TransferJob([receiver], occluders, bake.BakeSettings(mode="interreflected", order=2, samples=64,
+                                                                        bounces=0), albedo=[np.zeros((len(positions), 1))])
+    the_job.run()
+    records = interreflect.HitRecords.concatenate(the_job.records)
+    sums = np.bincount(records.vertex, weights=records.weight, minlength=len(positions))
+    assert abs(sums.mean() - 1.0) < 0.01 and sums.std() < 0.1 and sums.std() > 1e-6
+    assert np.all(records.weight > 0)
