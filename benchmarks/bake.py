@@ -135,17 +135,19 @@ def pick_vertices(caster, receivers, count, names, occludable_only, rng):
 
 
 def subset_receivers(receivers, picks):
-    """One receiver per owner holding only its picked vertices, and the rows of each pick in the
-    concatenated results."""
+    """One receiver per owner holding its picked vertices with the rest of their ray groups (so each is baked as the
+    bake bakes it: with its group's origin and rays), and the rows of each pick in the concatenated results."""
     subsets, rows, offset = [], np.empty(len(picks.owner), dtype=int), 0
     for owner in np.unique(picks.owner):
         mine = np.flatnonzero(picks.owner == owner)
         source = receivers[owner]
-        chosen = picks.index[mine]
+        groups = source.ray_groups
+        chosen = (picks.index[mine] if groups is None
+                  else np.flatnonzero(np.isin(groups, groups[picks.index[mine]])))
         subsets.append(bake.Receiver(source.name, source.positions[chosen], source.normals[chosen], source.key,
-                                     inward_of(source)[chosen]))
-        rows[mine] = offset + np.arange(len(mine))
-        offset += len(mine)
+                                     inward_of(source)[chosen], None if groups is None else groups[chosen]))
+        rows[mine] = offset + np.searchsorted(chosen, picks.index[mine])  # picks come sorted
+        offset += len(chosen)
     return subsets, rows
 
 

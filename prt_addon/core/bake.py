@@ -257,6 +257,8 @@ def shadowed_chunk(caster: RayCaster, positions, normals, inward, keys, settings
     lifted = normals + touched
     lifted /= np.maximum(np.linalg.norm(lifted, axis=1, keepdims=True), 1e-12)
     origins = positions + caster.offset * (np.where(facing[:, None], lifted, normals) + inward)
+    if labels is not None:  # a point touching a surface at an angle needs its own lifted origin: it casts alone
+        labels = np.where(facing, -1 - np.arange(count), labels)
     sets = ray_sets(labels, np.flatnonzero(has_surface & ~skipped))
     for members in sets:
         if members.shape[1] > 1:
