@@ -140,6 +140,7 @@ class PRT_PT_lights(SidebarPanel, bpy.types.Panel):
         if not 0 <= scene.prt_active_light < len(scene.prt_lights):
             layout.label(text="Add a light to relight the baked meshes", icon="INFO")
             return
+        layout.operator("prt.drive_lights", icon="VIEW_PAN")  # the original program's keys in the viewport
         layout.use_property_split = True
         self._draw_light(layout, scene, scene.prt_lights[scene.prt_active_light])
 
