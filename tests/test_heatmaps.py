@@ -144,5 +144,12 @@ def test_display_panel_draws_the_mode_and_the_legend(baked, prt, addon):
     bpy.types.PRT_PT_display.draw(SimpleNamespace(layout=Layout(drawn)), bpy.context)
     assert "mode" in drawn
     top = prt.handlers.engine.legend.top
-    assert f"Estimated relative error: {heatmap.range_label(top)} (above {100 * top:.4g} %: the top colour)" in labels
+    assert f"Estimated relative error: {heatmap.range_label(top)}" in labels
+    assert f"Above {100 * top:.4g} %: the top colour" in labels
     assert labels.count("") == importlib.import_module(f"{addon}.prt_addon.ui.heatmaps").SWATCHES
+    assert not [label for label in labels if label.startswith("Grey")]
+    display.mode = "DIFFERENCE"
+    update()
+    labels.clear()
+    bpy.types.PRT_PT_display.draw(SimpleNamespace(layout=Layout(drawn)), bpy.context)
+    assert "Grey, not validated: Cube, Grid" in labels

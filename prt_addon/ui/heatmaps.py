@@ -15,6 +15,7 @@ DISPLAY_MODES = [
                                              "(the Validation panel's button stores it)"),
 ]
 TITLES = {"ERROR": "Estimated relative error", "DIFFERENCE": "Error against Cycles"}
+MISSING = {"ERROR": "no stored error", "DIFFERENCE": "not validated"}  # why a mesh is grey
 SWATCHES = 8
 SWATCH_PIXELS = 16
 
@@ -39,10 +40,10 @@ def draw_legend(layout, mode):
     row = column.row(align=True)
     for icon in _swatch_icons():
         row.label(text="", icon_value=icon)
-    top = f"{100 * legend.top:.4g} %"
-    column.label(text=f"{TITLES[mode]}: {heatmap.range_label(legend.top)} (above {top}: the top colour)")
+    column.label(text=f"{TITLES[mode]}: {heatmap.range_label(legend.top)}")
+    column.label(text=f"Above {100 * legend.top:.4g} %: the top colour")
     if legend.missing:
-        column.label(text=f"Grey, not validated: {', '.join(legend.missing)}", icon="INFO")
+        column.label(text=f"Grey, {MISSING[mode]}: {', '.join(legend.missing)}", icon="INFO")
 
 
 def _swatch_icons() -> list[int]:
