@@ -60,7 +60,7 @@ class Comparison:
     p99: float             # 99th percentile of the per-vertex error, Cycles' noise taken out (denoised_errors)
     measured_p99: float    # 99th percentile of ‖PRT − Cycles‖, Cycles' noise included
     worst: list            # worst_vertices of the per-vertex error, Cycles' noise taken out: (index, error)
-    errors: np.ndarray = field(repr=False)  # the per-vertex error itself (V,), which the heatmap shows
+    errors: np.ndarray = field(repr=False, compare=False)  # the per-vertex error itself (V,): the heatmap shows it
 
     @property
     def error(self) -> float:
