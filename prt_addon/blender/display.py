@@ -34,6 +34,11 @@ def write_display_colours(mesh, transfer: np.ndarray, light: np.ndarray, corner_
     domain = "POINT" if corner_points is None else "CORNER"
     if corner_points is not None:
         rgba = rgba[corner_points]
+    write_colour_rows(mesh, rgba, domain)
+
+
+def write_colour_rows(mesh, rgba: np.ndarray, domain: str):
+    """(rows, 4) float32 RGBA into the display colour attribute, per vertex (POINT) or face corner (CORNER)."""
     _colour_attribute(mesh, domain).data.foreach_set("color", rgba.ravel())
     mesh.update_tag()  # a depsgraph tag only: no context needed, so it is safe from a render's frame handler
 

@@ -14,6 +14,7 @@ object's own in either case.
 import bpy
 import numpy as np
 
+from ..core.colour import srgb_to_linear
 from .mesh_arrays import mesh_corner_vertices
 
 DEFAULT_ALBEDO = (0.8, 0.8, 0.8)  # what Blender renders a mesh without material with
@@ -156,12 +157,8 @@ def _sample_image(image, uv, ob, notes, fallback) -> np.ndarray:
     if colours.shape[1] == 1:
         colours = np.repeat(colours, 3, axis=1)
     if image.colorspace_settings.name == "sRGB" and not image.is_float:
-        colours = _srgb_to_linear(colours)  # byte images hold display-encoded values
+        colours = srgb_to_linear(colours)  # byte images hold display-encoded values
     return colours
-
-
-def _srgb_to_linear(values):
-    return np.where(values <= 0.04045, values / 12.92, ((values + 0.055) / 1.055) ** 2.4)
 
 
 def _corner_colours(mesh, attribute) -> np.ndarray:

@@ -13,7 +13,7 @@ import bpy
 
 from ..core import lights as core_lights
 from ..core.errors import StaleBake
-from . import display, storage
+from . import display, heatmaps, storage
 from .lights import environment_image, scene_lights
 
 
@@ -27,8 +27,9 @@ class Relighter:
         self._light_cache = core_lights.LightCache()
         # mesh name → (bake key, ((P, n²) float32 transfer, corner points or None), or None for a stale bake)
         self._transfers = {}
-        self._shaded = {}     # mesh name → (bake key, light bytes) of the colours it holds
+        self._shaded = {}     # mesh name → (bake key, light bytes) or a heatmap's state: the colours it holds
         self._reported = set()  # messages already printed
+        self.legend = None  # heatmaps.Legend of the last heatmap painted, for the panel
 
     def refresh(self, scene, depsgraph):
         """Brings colours and display materials up to date with the scene's SH lights and switches.
@@ -40,9 +41,13 @@ class Relighter:
         self.busy = True
         try:
             settings = depsgraph.scene_eval
-            in_use = settings.prt_lights or settings.prt_display.show_prt  # else nothing is read or written
+            mode = settings.prt_display.mode
+            # without lights, the display or a heatmap nothing is read or written
+            in_use = settings.prt_lights or settings.prt_display.show_prt or mode != heatmaps.SHADED
             receivers = list(self._receivers(scene)) if in_use else []
-            if settings.prt_lights:
+            if mode != heatmaps.SHADED:
+                self._paint_heatmaps(receivers, mode)
+            elif settings.prt_lights:
                 self._shade(receivers, settings)
             _sync_display(scene, receivers, settings.prt_display)
         finally:
@@ -112,6 +117,18 @@ class Relighter:
                 display.write_display_colours(ob.data, transfer, light, corner_points)
                 self._shaded[ob.data.name_full] = state
 
+    def _paint_heatmaps(self, receivers, mode):
+        """Heatmap colours on one scale; a mesh is painted again only when its values, its bake or the scale
+        changed (the state differs from any shaded one, so going back to Shaded shades again)."""
+        found = heatmaps.read([ob for ob, _ in receivers], mode)
+        self.legend = heatmaps.legend(found, mode)
+        for ob, _ in receivers:
+            rows = found[ob.name_full]
+            state = (mode, self.legend.top, _bake_key(ob.data), None if rows is None else hash(rows[0].tobytes()))
+            if self._shaded.get(ob.data.name_full) != state:
+                heatmaps.paint(ob.data, rows, self.legend.top)
+                self._shaded[ob.data.name_full] = state
+
 
 def _bake_key(mesh):
     """What identifies a bake: its unique id, the vertex counts then and now, and the corner count now."""
@@ -129,4 +146,4 @@ def _sync_display(scene, receivers, settings):
             display.show(ob)
         elif display.is_shown(ob) and ob.mode != "EDIT":  # an object being edited keeps what it shows
             display.restore(ob)
-    display.set_albedo(settings.use_albedo)
+    display.set_albedo(settings.use_albedo and settings.mode == heatmaps.SHADED)  # a heatmap shows as it is

@@ -5,6 +5,8 @@ Stored layout (documented in the README; bump core.bake.CONVENTION_VERSION when 
   3j+2; the last one zero-padded). The leading `_` lets glTF export them. Coloured (interreflected) transfer has
   one such set per channel: `_prt_r00`..., `_prt_g00`..., `_prt_b00`....
 - FLOAT attribute `_prt_error`: the estimated relative standard error.
+- FLOAT attribute `_prt_validation_error` (optional, written by the panel's validation): the last validation's
+  per-vertex (per-corner) error against Cycles, in the same domain. It goes with the bake it judged.
 - Their domain: POINT, one row per vertex, where every vertex is one shading point (core.corners), as in
   convention 2; CORNER, one row per face corner, where some vertex is split by its corner normals, with the INT
   CORNER attribute `_prt_point` giving each corner's shading point (corners of one point hold equal rows).
@@ -25,6 +27,7 @@ from ..core.errors import StaleBake
 
 ATTRIBUTE_PREFIX = "_prt_"
 ERROR_ATTRIBUTE = "_prt_error"
+VALIDATION_ERROR_ATTRIBUTE = "_prt_validation_error"
 POINT_ATTRIBUTE = "_prt_point"
 METADATA_KEY = "prt"
 READABLE_CONVENTIONS = (2, bake.CONVENTION_VERSION)  # 2: POINT domain only, no `domain` key
@@ -97,6 +100,27 @@ def remove_transfer(mesh):
         mesh.attributes.remove(mesh.attributes[name])
     if METADATA_KEY in mesh:
         del mesh[METADATA_KEY]
+
+
+def read_values(mesh, name) -> tuple[np.ndarray, str] | None:
+    """A FLOAT attribute of the bake (ERROR_ATTRIBUTE, VALIDATION_ERROR_ATTRIBUTE) as float32 rows and their
+    domain (POINT: per vertex, CORNER: per face corner); None where the mesh does not have it."""
+    attribute = mesh.attributes.get(name)
+    if attribute is None:
+        return None
+    values = np.empty(len(attribute.data), dtype=np.float32)
+    attribute.data.foreach_get("value", values)
+    return values, attribute.domain
+
+
+def write_validation_error(mesh, errors: np.ndarray):
+    """The last validation's errors, one per row it compared: per vertex, or per face corner for a per-corner
+    bake (the bake's domain)."""
+    domain = _metadata(mesh).get("domain", "POINT")
+    if VALIDATION_ERROR_ATTRIBUTE in mesh.attributes:
+        mesh.attributes.remove(mesh.attributes[VALIDATION_ERROR_ATTRIBUTE])
+    mesh.attributes.new(VALIDATION_ERROR_ATTRIBUTE, "FLOAT", domain)
+    mesh.attributes[VALIDATION_ERROR_ATTRIBUTE].data.foreach_set("value", np.asarray(errors, dtype=np.float32))
 
 
 def read_transfer(mesh) -> tuple[np.ndarray, dict]:

@@ -152,6 +152,12 @@ class Validation(WrappingJob):
         return ([compare(ob.name, prt, cycles) for (ob, _), prt, cycles in zip(self.receivers, colours, passes)]
                 + [compare("all", np.concatenate(colours), np.concatenate(passes, axis=1))])
 
+    def store_errors(self, comparisons):
+        """Each receiver's per-vertex (per-corner) error against Cycles on its mesh, for the viewport's Difference
+        from Cycles heatmap (storage.VALIDATION_ERROR_ATTRIBUTE)."""
+        for (ob, _), comparison in zip(self.receivers, comparisons):
+            storage.write_validation_error(ob.data, comparison.errors)
+
     @property
     def vertices(self) -> int:
         """The receivers' mesh vertices (compared per vertex, or per face corner where baked per corner)."""

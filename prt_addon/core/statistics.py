@@ -2,7 +2,7 @@
 the RMS, per vertex, in the 99th percentile and in the worst vertices), and the share of a light that Cycles cannot
 emit."""
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 import math
 
 import numpy as np
@@ -60,6 +60,7 @@ class Comparison:
     p99: float             # 99th percentile of the per-vertex error, Cycles' noise taken out (denoised_errors)
     measured_p99: float    # 99th percentile of ‖PRT − Cycles‖, Cycles' noise included
     worst: list            # worst_vertices of the per-vertex error, Cycles' noise taken out: (index, error)
+    errors: np.ndarray = field(repr=False, compare=False)  # the per-vertex error itself (V,): the heatmap shows it
 
     @property
     def error(self) -> float:
@@ -86,7 +87,7 @@ def compare(name: str, prt: np.ndarray, passes: np.ndarray, k: int = WORST_VERTI
     errors = denoised_errors(difference, noise) / scale
     return Comparison(name, len(prt), rms(difference) / scale, float(np.sqrt(np.mean(noise))) / scale,
                       float(difference.max(initial=0.0)) / scale, percentile(errors),
-                      percentile(difference) / scale, worst_vertices(errors, k))
+                      percentile(difference) / scale, worst_vertices(errors, k), errors)
 
 
 def worst_object(comparisons: list) -> Comparison:

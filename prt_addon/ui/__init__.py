@@ -1,9 +1,10 @@
-"""The Blender interface: properties, operators, panels, SH lights, validation, handlers and overlays, registered
-in that order (the sidebar shows the bake's panel, then the lights', then validation)."""
+"""The Blender interface: properties, operators, panels, SH lights, validation, handlers, overlays, the heatmaps'
+legend and Drive Lights, registered in that order (the sidebar shows the bake's panel, then the lights', then
+validation)."""
 
-from . import handlers, lights, operators, overlays, panels, properties, validation
+from . import drive, handlers, heatmaps, lights, operators, overlays, panels, properties, validation
 
-modules = (properties, operators, panels, lights, validation, handlers, overlays)
+modules = (properties, operators, panels, lights, validation, handlers, overlays, heatmaps, drive)
 
 
 def register():

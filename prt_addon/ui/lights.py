@@ -12,6 +12,7 @@ from bpy.props import (BoolProperty, CollectionProperty, EnumProperty, FloatProp
                        IntProperty, PointerProperty)
 
 from ..blender.lights import environment_image
+from .heatmaps import DISPLAY_MODES, draw_legend, mode_changed
 from .panels import SidebarPanel
 from .registration import classes_and_properties
 
@@ -67,6 +68,8 @@ class PRT_PG_display(bpy.types.PropertyGroup):
         name="PRT Display", default=False, update=_tag_scene,
         description="Show the PRT colours through display materials (the scene's own materials are kept "
                     "and put back when this is off)")
+    mode: EnumProperty(name="Show", items=DISPLAY_MODES, default="SHADED", update=mode_changed,
+                       description="The PRT colours, or a heatmap of where the bake is inaccurate")
     use_albedo: BoolProperty(name="Albedo Texture", default=True, update=_tag_scene,
                              description="Multiply the PRT colour by each material's Base Color texture")
     window: EnumProperty(name="Window", items=WINDOWS, default="none", update=_tag_scene,
@@ -137,6 +140,7 @@ class PRT_PT_lights(SidebarPanel, bpy.types.Panel):
         if not 0 <= scene.prt_active_light < len(scene.prt_lights):
             layout.label(text="Add a light to relight the baked meshes", icon="INFO")
             return
+        layout.operator("prt.drive_lights", icon="VIEW_PAN")  # the original program's keys in the viewport
         layout.use_property_split = True
         self._draw_light(layout, scene, scene.prt_lights[scene.prt_active_light])
 
@@ -171,8 +175,10 @@ class PRT_PT_display(SidebarPanel, bpy.types.Panel):
         layout.use_property_split = True
         display = context.scene.prt_display
         layout.prop(display, "show_prt", toggle=True, icon="SHADING_RENDERED")
+        layout.prop(display, "mode")
+        draw_legend(layout, display.mode)
         column = layout.column()
-        column.enabled = display.show_prt
+        column.enabled = display.show_prt and display.mode == "SHADED"
         column.prop(display, "use_albedo")
         layout.prop(display, "window")
         column = layout.column(heading="Overlays")

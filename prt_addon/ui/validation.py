@@ -57,6 +57,8 @@ class PRT_OT_validate(ModalJob, bpy.types.Operator):
 
     def finish(self, context, validation, comparisons):
         store_result(context.window_manager.prt_validation, validation, comparisons)
+        validation.store_errors(comparisons)
+        context.scene.update_tag()  # the Difference from Cycles heatmap shows the new errors
         for sentence in validation.problems + validation.notes:
             self.report({"WARNING"}, sentence)
         lines = validation.lines(comparisons)

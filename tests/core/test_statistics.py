@@ -40,6 +40,7 @@ def test_p99_and_worst_vertices_of_known_errors():
     np.testing.assert_allclose([error for _, error in comparison.worst], [e for _, e in expected], atol=1e-12)
     # The per-vertex errors are the RMS's quadrature vertex by vertex: none clamps here, so their RMS is it.
     assert comparison.error == pytest.approx(rms(errors), rel=1e-12)
+    np.testing.assert_allclose(comparison.errors, errors, atol=1e-12)
     assert comparison.measured_p99 > comparison.p99 and comparison.max_difference > 1.0
     assert "p99 99.0 %" in comparison.text() and comparison.as_dict()["rel_p99_error"] == comparison.p99
 
