@@ -123,6 +123,11 @@ def test_what_each_change_is_called(room):
         polygon.use_smooth = True
     box_.data.update()
     assert changes() == {"Floor": [], "Cube": [], "Box": ["geometry changed"]}
+    displace = floor.modifiers.new("Displace", "DISPLACE")  # the evaluated surface is what counts
+    displace.strength = 0.05
+    assert changes() == {"Floor": ["geometry changed"], "Cube": ["occluders changed"],
+                         "Box": ["geometry changed", "occluders changed"]}
+    floor.modifiers.remove(displace)
     box_.hide_set(True)
     assert changes(["Floor", "Cube"]) == {"Floor": ["occluders changed"], "Cube": ["occluders changed"]}
 
