@@ -9,6 +9,7 @@ import pytest
 from conftest import FakeLayout, run_cli
 from test_bake_blender import box, grid, select
 from prt_addon.blender import fingerprint, storage
+from prt_addon.blender.scene_bake import SceneBake
 from prt_addon.core.bake import BakeSettings
 from prt_addon.core.fingerprint import PARTS
 
@@ -167,6 +168,21 @@ def test_never_baked_and_older_bakes_are_stale(room):
     assert bpy.ops.prt.bake_stale() == {"FINISHED"}
     assert {ob.name: stored(ob) for ob in room} == before
     assert storage.METADATA_KEY in extra.data
+
+
+def test_a_cancelled_stale_bake_keeps_every_earlier_bake(room):
+    floor, cube, box_ = room
+    cube.location.x += 0.7
+    before = {ob.name: stored(ob) for ob in room}
+    stale = [name for name, words in changes().items() if words]
+    assert stale == ["Floor", "Cube", "Box"]
+    # 2^20 rays per vertex: a 100 M ray bake, far from done after one step on any machine.
+    settings = BakeSettings(order=3, samples=1 << 20, max_samples=1 << 20)
+    scene_bake = SceneBake(bpy.context, settings, stale)
+    assert not scene_bake.step(0.05)  # part of the work, as the modal operator does per timer event
+    scene_bake.cancel()
+    assert {ob.name: stored(ob) for ob in room} == before
+    assert changes() == {"Floor": ["occluders changed"], "Cube": ["moved"], "Box": ["occluders changed"]}
 
 
 class LabelLayout(FakeLayout):
