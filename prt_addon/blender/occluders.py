@@ -22,11 +22,8 @@ def occluders_from_depsgraph(depsgraph, surfaces=()) -> tuple[bake.Occluders, se
     flat = [polygons.convex_polygon(s.receiver.positions, s.triangles) for s in surfaces]
     baked = {s.receiver.name for s in surfaces}
     for instance in depsgraph.object_instances:
-        ob = instance.object
-        if ob.type != "MESH" or (not instance.is_instance and ob.original.name in baked):
-            continue
-        owner = instance.parent.original if instance.is_instance and instance.parent else ob.original
-        if not owner.visible_get():
+        ob, owner = instance.object, shadow_caster(instance)
+        if owner is None or (not instance.is_instance and ob.original.name in baked):
             continue
         key = ob.original.name, instance.is_instance
         if key not in meshes:
@@ -54,6 +51,15 @@ def occluders_from_depsgraph(depsgraph, surfaces=()) -> tuple[bake.Occluders, se
     found = polygons.largest([polygon for polygon in flat if polygon is not None], polygons.MAX_POLYGONS)
     hull = convex_hull_points(vertices[np.unique(triangles)])
     return bake.Occluders(vertices, triangles, hull, found, solved_vertices=solved), sources
+
+
+def shadow_caster(instance):
+    """The visible object whose mesh a depsgraph instance shows (the instancer for an instance), or None when it
+    casts no shadow (not a mesh, or hidden)."""
+    if instance.object.type != "MESH":
+        return None
+    owner = instance.parent.original if instance.is_instance and instance.parent else instance.object.original
+    return owner if owner.visible_get() else None
 
 
 def convex_hull_points(points: np.ndarray) -> np.ndarray:

@@ -12,7 +12,7 @@ import numpy as np
 from ..core import bake, job, subsurface, workers
 from ..core.errors import InputError
 from ..core.progress import WrappingJob
-from . import geometry, materials, storage
+from . import fingerprint, geometry, materials, storage
 from .occluders import occluders_from_depsgraph
 
 
@@ -102,6 +102,8 @@ class SceneBake(WrappingJob):
                 self.problems.append(str(problem))
         if not receivers:
             raise InputError("nothing to bake: " + ("; ".join(self.problems) or "no mesh objects"))
+        # Taken now, from the scene as it is baked: objects may move while a modal bake runs.
+        self.fingerprints = fingerprint.fingerprints(depsgraph, self.objects, settings)
         # Every visible mesh reflects light onto the receivers in an interreflected bake, so its transfer is solved
         # too.
         bouncers = self._bouncing_surfaces(context, depsgraph, {ob.name for ob in self.objects}) if bouncing else []
@@ -149,7 +151,7 @@ class SceneBake(WrappingJob):
                 result.transfer = with_subsurface(surface, result.transfer, *material)
                 self.subsurface_objects.append(ob.name)
         for ob, surface, result in zip(self.objects, self.surfaces.receivers, results):
-            extra = {"time_s": self.summary.time_s}
+            extra = {"time_s": self.summary.time_s, fingerprint.FINGERPRINT_KEY: self.fingerprints[ob.name]}
             if self.summary.bounces is not None:
                 extra["bounces"] = self.summary.bounces
             storage.write_transfer(ob, result, extra, self.settings, surface.corner_points, surface.split_vertices)

@@ -5,6 +5,7 @@ import os
 
 import bpy
 
+from ..blender.fingerprint import stale_line, stale_receivers
 from ..blender.scene_bake import SceneBake
 from ..core import settings as spec
 from ..core.bake import BakeSettings
@@ -20,6 +21,9 @@ def add_parser(commands):
         add_setting(parser, setting)
     parser.add_argument("--output", help="where to save the baked file (default: over the opened file)")
     parser.add_argument("--report", help="write the bake report as JSON here")
+    parser.add_argument("--stale-only", action="store_true",
+                        help="rebake only the receivers whose geometry, transform, occluders, materials or settings "
+                             "changed since their bake (or that have none); nothing is written when none did")
 
 
 def add_setting(parser, setting: spec.Setting):
@@ -51,7 +55,14 @@ def settings_from(args) -> BakeSettings:
 
 def run(args, in_blender: bool) -> int:
     open_file(args.file, required=not in_blender)
-    scene_bake = SceneBake(bpy.context, settings_from(args), names(args.objects), workers=args.workers)
+    settings, receivers = settings_from(args), names(args.objects)
+    if args.stale_only:
+        changed = stale_receivers(bpy.context, settings, receivers)
+        log(stale_line(changed))
+        receivers = [name for name, words in changed.items() if words]
+        if not receivers:
+            return 0
+    scene_bake = SceneBake(bpy.context, settings, receivers, workers=args.workers)
     warn(scene_bake.problems + scene_bake.notes)
     summary = scene_bake.run(log=log)
     log(summary.line())

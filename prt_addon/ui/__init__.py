@@ -1,10 +1,10 @@
-"""The Blender interface: properties, operators, panels, SH lights, validation, handlers, overlays, the heatmaps'
-legend and Drive Lights, registered in that order (the sidebar shows the bake's panel, then the lights', then
+"""The Blender interface: properties, operators, stale-only rebakes, panels, SH lights, validation, handlers,
+overlays, the heatmaps' legend and Drive Lights, registered in that order (the sidebar shows the bake's panel, then the lights', then
 validation)."""
 
-from . import drive, handlers, heatmaps, lights, operators, overlays, panels, properties, validation
+from . import drive, handlers, heatmaps, lights, operators, overlays, panels, properties, stale, validation
 
-modules = (properties, operators, panels, lights, validation, handlers, overlays, heatmaps, drive)
+modules = (properties, operators, stale, panels, lights, validation, handlers, overlays, heatmaps, drive)
 
 
 def register():

@@ -105,10 +105,9 @@ class ModalJob:
         context.workspace.status_text_set(None)
 
 
-class PRT_OT_bake(ModalJob, bpy.types.Operator):
-    """Bake SH transfer into the selected meshes (all visible meshes when none is selected)"""
-    bl_idname = "prt.bake"
-    bl_label = "Bake PRT"
+class BakeJob(ModalJob):
+    """What the bake operators share (Bake, and Bake Stale in stale.py; Blender does not register a subclass of a
+    registered operator): the panel's status, when they can run, and the outcome's report."""
     bl_options = {"REGISTER", "UNDO"}
     status_property = "prt_bake_status"
     label = "PRT bake"
@@ -119,13 +118,19 @@ class PRT_OT_bake(ModalJob, bpy.types.Operator):
         status = context.window_manager.prt_bake_status
         return context.mode == "OBJECT" and not status.running
 
-    def make_job(self, context):
-        settings = context.scene.prt_bake
-        return SceneBake(context, settings.to_settings(), workers=settings.workers)
-
     def finish(self, context, scene_bake, summary):
         _report_outcome(self, scene_bake)
         print(summary.line())
+
+
+class PRT_OT_bake(BakeJob, bpy.types.Operator):
+    """Bake SH transfer into the selected meshes (all visible meshes when none is selected)"""
+    bl_idname = "prt.bake"
+    bl_label = "Bake PRT"
+
+    def make_job(self, context):
+        settings = context.scene.prt_bake
+        return SceneBake(context, settings.to_settings(), workers=settings.workers)
 
 
 class PRT_OT_clear(bpy.types.Operator):

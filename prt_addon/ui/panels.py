@@ -4,6 +4,7 @@ active object's stored bake. The Lights and Display panels are in lights.py, Val
 import bpy
 
 from ..blender import storage
+from .stale import draw_status
 
 
 class SidebarPanel:
@@ -44,6 +45,7 @@ class PRT_PT_bake(SidebarPanel, bpy.types.Panel):
             row = layout.row(align=True)
             row.operator("prt.bake", icon="RENDER_STILL")
             row.operator("prt.clear", icon="X", text="")
+            layout.operator("prt.bake_stale", icon="FILE_REFRESH")
 
 
 class PRT_PT_bake_info(SidebarPanel, bpy.types.Panel):
@@ -66,6 +68,7 @@ class PRT_PT_bake_info(SidebarPanel, bpy.types.Panel):
         meta = mesh[storage.METADATA_KEY]
         if meta.get("vertex_count") != len(mesh.vertices):
             layout.label(text="Stale: the mesh changed since the bake", icon="ERROR")
+        draw_status(layout, context, context.active_object)
         column = layout.column(align=True)
         column.label(text=f"Order {meta['order']}, {meta['mode']}, {meta['samples']} samples")
         column.label(text=f"{meta['rays']:,} rays in {meta.get('time_s', 0.0):.1f} s")
