@@ -1,6 +1,6 @@
 """The Blender interface: properties, operators, stale-only rebakes, panels, SH lights, validation, handlers,
-overlays, the heatmaps' legend and Drive Lights, registered in that order (the sidebar shows the bake's panel, then the lights', then
-validation)."""
+overlays, the heatmaps' legend and Drive Lights, registered in that order (the sidebar shows the bake's panel,
+then the lights', then validation)."""
 
 from . import drive, handlers, heatmaps, lights, operators, overlays, panels, properties, stale, validation
 
