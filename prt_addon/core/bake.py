@@ -416,9 +416,8 @@ def _blocked_round(caster, origins, frames, unshadowed, flat, keys, round_index,
         occluded, triangle, distance = caster.occluded(origins, cast, hits=True)
     else:
         occluded = caster.occluded(origins, cast)
-    if size == 1:
-        weights = np.ones((groups, 1, replicates, per_replicate))
-    else:
+    weights = None  # a group of one samples its own lobe: every weight is 1
+    if size > 1:
         heights = np.einsum("gd,grmd->grm", mean_normal, directions) - floor[:, None, None]
         cosines = np.maximum(np.einsum("gkd,grmd->gkrm", normals, directions), 0.0)
         weights = cosines * ((1.0 - floor) ** 2)[:, None, None, None] / np.maximum(heights, 1e-300)[:, None]
@@ -427,8 +426,8 @@ def _blocked_round(caster, origins, frames, unshadowed, flat, keys, round_index,
     if cones is not None:
         seen = np.broadcast_to(cast[:, None], (groups, size, *cast.shape[1:])).reshape(groups * size, -1, 3)
         flat_hits = polygons.hits(seen, cones.reshape(groups * size, *cones.shape[2:]))
-        blocked = blocked - flat_hits.reshape(weights.shape)
-    blocked_weights = weights * blocked
+        blocked = blocked - flat_hits.reshape(groups, size, replicates, per_replicate)
+    blocked_weights = blocked if weights is None else weights * blocked
     all_rays, blocked_rays = _weighted_means(directions, weights, blocked_weights, order)
     beta = 1.0 - blocked_weights.mean(axis=(2, 3))[..., None, None]  # (g, k, 1, 1)
     estimate = beta * unshadowed[:, :, None] + (1.0 - beta) * all_rays - blocked_rays  # (g, k, R, n²)
@@ -441,11 +440,17 @@ def _blocked_round(caster, origins, frames, unshadowed, flat, keys, round_index,
 def _weighted_means(directions, weights, blocked_weights, order):
     """Per row and replicate: the means of W·Y and of W·(1 − V)·Y over its group's directions (g, R, m, 3), as one
     small matrix product per group and replicate, a few at a time so memory stays bounded at high orders and ray
-    counts. Both (g, k, R, n²)."""
+    counts. Both (g, k, R, n²); `weights` None: all 1 (a group of one)."""
     groups, replicates, per_replicate = directions.shape[:3]
-    size, coefficients = weights.shape[1], order * order
-    rows = np.concatenate([weights, blocked_weights], axis=1)  # (g, 2k, R, m)
-    rows = np.moveaxis(rows, 2, 1).reshape(groups * replicates, 2 * size, per_replicate) * (1.0 / per_replicate)
+    size, coefficients = blocked_weights.shape[1], order * order
+    rows = np.empty((groups * replicates, 2 * size, per_replicate))
+    if weights is None:
+        rows[:, 0] = 1.0 / per_replicate
+        np.multiply(blocked_weights.reshape(-1, per_replicate), 1.0 / per_replicate, out=rows[:, 1])
+    else:
+        for half, part in enumerate((weights, blocked_weights)):
+            rows.reshape(groups, replicates, 2, size, per_replicate)[:, :, half] = np.moveaxis(part, 2, 1)
+        rows *= 1.0 / per_replicate
     flat_directions = directions.reshape(groups * replicates, per_replicate, 3)
     means = np.empty((groups * replicates, 2 * size, coefficients))
     step = max(1, REPLICATE_VALUES_AT_ONCE // (per_replicate * coefficients))
@@ -464,6 +469,8 @@ def _round_hits(caster, origins, cast, occluded, triangle, distance, weights):
     barycentric, front = caster.front_hits(origins[group], cast[group, ray], triangle[group, ray],
                                            distance[group, ray])
     group, ray, triangle, barycentric = group[front], ray[front], triangle[group, ray][front], barycentric[front]
+    if weights is None:
+        return group, triangle, barycentric, np.ones(len(group))
     size = weights.shape[1]
     hit_weights = weights.reshape(len(weights), size, -1)[group, :, ray]  # (H, k)
     hit, member = np.nonzero(hit_weights > 0.0)
