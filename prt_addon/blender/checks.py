@@ -75,10 +75,10 @@ def object_checks(ob, receiver: bool, casts_rays: bool) -> list[Check]:
     found = []
     name = repr(ob.name)
     if casts_rays and ob.matrix_world.determinant() < 0:
-        scale = ", ".join(f"{value:g}" for value in ob.matrix_world.to_scale())
-        found.append(Check(WARNING, name, f"negative scale (its world scale is {scale} with one axis mirrored): "
-                                          f"contact and bounced light take its faces' backs for their fronts; "
-                                          f"apply the scale (Object > Apply > Scale)"))
+        scale = (f"negative scale ({', '.join(f'{value:g}' for value in ob.scale)})" if min(ob.scale) < 0 else
+                 "mirrored by a parent's negative scale")
+        found.append(Check(WARNING, name, f"{scale}: contact and bounced light take its faces' backs for their "
+                                          f"fronts; apply the scale (Object > Apply > Scale)"))
     if not receiver:
         return found
     if ob.hide_render:

@@ -4,9 +4,10 @@ jobs (core.progress.Job) that the validation shares."""
 import bpy
 
 from ..blender import geometry, storage
-from ..blender.scene_bake import SceneBake
+from ..core import checks
 from ..core.errors import InputError
 from ..core.progress import format_duration
+from .checks import checked_bake
 
 
 def _report_outcome(operator, scene_bake):
@@ -120,8 +121,13 @@ class PRT_OT_bake(ModalJob, bpy.types.Operator):
         return context.mode == "OBJECT" and not status.running
 
     def make_job(self, context):
-        settings = context.scene.prt_bake
-        return SceneBake(context, settings.to_settings(), workers=settings.workers)
+        """The bake, once its checks pass: the panel lists them, warnings are reported, errors stop it."""
+        scene_bake, found = checked_bake(context)
+        for check in found:
+            if check.level == checks.WARNING:
+                self.report({"WARNING"}, f"{check.subject}: {check.text}")
+        checks.stop_on_errors(found)
+        return scene_bake
 
     def finish(self, context, scene_bake, summary):
         _report_outcome(self, scene_bake)
