@@ -1,9 +1,9 @@
-"""The Blender interface: properties, operators, panels, SH lights, validation, handlers and overlays, registered
-in that order (the sidebar shows the bake's panel, then the lights', then validation)."""
+"""The Blender interface: properties, the checklist before a bake, presets, operators, panels, SH lights, validation,
+handlers and overlays, registered in that order (the sidebar shows the bake's panel, then the lights', then validation)."""
 
-from . import handlers, lights, operators, overlays, panels, properties, validation
+from . import checks, handlers, lights, operators, overlays, panels, presets, properties, validation
 
-modules = (properties, operators, panels, lights, validation, handlers, overlays)
+modules = (properties, checks, presets, operators, panels, lights, validation, handlers, overlays)
 
 
 def register():

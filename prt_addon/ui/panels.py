@@ -4,6 +4,8 @@ active object's stored bake. The Lights and Display panels are in lights.py, Val
 import bpy
 
 from ..blender import storage
+from .checks import draw_checklist
+from .presets import draw_presets
 
 
 class SidebarPanel:
@@ -22,6 +24,7 @@ class PRT_PT_bake(SidebarPanel, bpy.types.Panel):
         layout.use_property_split = True
         layout.use_property_decorate = False
         settings = context.scene.prt_bake
+        draw_presets(layout)
         layout.prop(settings, "mode")
         layout.prop(settings, "order")
         column = layout.column()
@@ -44,6 +47,7 @@ class PRT_PT_bake(SidebarPanel, bpy.types.Panel):
             row = layout.row(align=True)
             row.operator("prt.bake", icon="RENDER_STILL")
             row.operator("prt.clear", icon="X", text="")
+            draw_checklist(layout, context)
 
 
 class PRT_PT_bake_info(SidebarPanel, bpy.types.Panel):
