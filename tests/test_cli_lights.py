@@ -90,6 +90,8 @@ def test_an_environment_image_with_a_rotation(baked_plane, tmp_path):
     (("--sky", "-0.5"), "--sky takes a number of at least 0"),
     (("--env", "no_such.exr"), "--env: no such image: no_such.exr"),
     (("--env-rotation", "30"), "give --env IMAGE too"),
+    (("--samples", "0"), "--samples takes a whole number of at least 1"),
+    (("--light", "-1"), "--light takes a whole number of at least 0"),
 ])
 def test_bad_light_options_are_refused_by_name(baked_plane, tmp_path, args, words):
     result = run_cli("relight", baked_plane, *args, "--render", tmp_path / "x.png", cwd=tmp_path)

@@ -11,18 +11,19 @@ from ..blender.relighting import Relighter
 from ..blender.render import ENGINES, engine_id, render
 from ..core.errors import InputError
 from . import light_options
+from .common import whole_number
 
 
 def add_parser(commands):
     parser = commands.add_parser("relight", help="re-render a baked .blend file under changed SH lights")
     parser.add_argument("file", help=".blend file with a bake and SH lights")
-    parser.add_argument("--light", type=int, help="index of the SH light to aim (default: the active one)")
+    parser.add_argument("--light", type=whole_number("--light", 0), help="index of the SH light to aim (default: the active one)")
     parser.add_argument("--light-theta", type=float, metavar="DEGREES", help="angle from the zenith; a light that "
                         "follows a Sun object stops following it")
     parser.add_argument("--light-phi", type=float, metavar="DEGREES", help="azimuth, from +X towards +Y")
     parser.add_argument("--engine", choices=ENGINES, default="EEVEE",
                         help="EEVEE: PRT colour × albedo texture; WORKBENCH: the PRT colour alone, faster")
-    parser.add_argument("--samples", type=int, default=4, help="EEVEE render samples")
+    parser.add_argument("--samples", type=whole_number("--samples", 1), default=4, help="EEVEE render samples")
     parser.add_argument("--resolution", type=_resolution, metavar="WxH", help="default: the file's")
     parser.add_argument("--render", required=True, metavar="OUT.png", help="where to write the image")
     light_options.add_arguments(parser)
