@@ -67,9 +67,9 @@ def run(args, in_blender: bool) -> int:
     output = args.output or bpy.data.filepath
     found = [scene_checks.output_check(output, required=True)]
     checks.stop_on_errors(found)  # before the scene is gathered: a wrong --output fails at once
-    for line in light_options.add_lights(bpy.context.scene, args):
-        log(f"prt: added SH light: {line}")
-    scene_bake = SceneBake(bpy.context, settings, names(args.objects), workers=getattr(args, "workers", spec.WORKERS.default))
+    light_options.add_lights(bpy.context.scene, args)
+    workers = getattr(args, "workers", spec.WORKERS.default)
+    scene_bake = SceneBake(bpy.context, settings, names(args.objects), workers=workers)
     found += scene_checks.scene_checks(bpy.context, scene_bake)
     log("prt: checks before any ray:")
     for check in found:

@@ -10,6 +10,7 @@ import bpy
 
 from ..blender import lights
 from ..core.errors import InputError
+from .common import log
 
 
 def add_arguments(parser):
@@ -53,13 +54,13 @@ def _sun(text: str) -> tuple:
     return theta, phi, irradiance
 
 
-def add_lights(scene, args) -> list[str]:
-    """Adds the SH lights the options ask for and returns a line describing each; changes nothing when none are
+def add_lights(scene, args):
+    """Adds the SH lights the options ask for and prints a line describing each; changes nothing when none are
     asked for. A file that has lights keeps them unless --replace-lights; a missing image changes nothing."""
     if args.env_rotation is not None and not args.env:
         raise InputError("--env-rotation turns the --env image; give --env IMAGE too")
     if not (args.sun or args.env or args.sky is not None):
-        return []
+        return
     if len(scene.prt_lights) and not args.replace_lights:
         have = ", ".join(repr(entry.name) for entry in scene.prt_lights)
         raise InputError(f"the file already has {len(scene.prt_lights)} SH lights ({have}); give --replace-lights "
@@ -76,7 +77,8 @@ def add_lights(scene, args) -> list[str]:
     if args.sky is not None:
         _new_light(scene, "SKY").strength = args.sky
     scene.prt_active_light = 0
-    return [lights.describe(entry, scene) for entry in scene.prt_lights]
+    for entry in scene.prt_lights:
+        log(f"prt: added SH light: {lights.describe(entry, scene)}")
 
 
 def _new_light(scene, kind: str):

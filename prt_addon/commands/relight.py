@@ -17,7 +17,8 @@ from .common import whole_number
 def add_parser(commands):
     parser = commands.add_parser("relight", help="re-render a baked .blend file under changed SH lights")
     parser.add_argument("file", help=".blend file with a bake and SH lights")
-    parser.add_argument("--light", type=whole_number("--light", 0), help="index of the SH light to aim (default: the active one)")
+    parser.add_argument("--light", type=whole_number("--light", 0),
+                        help="index of the SH light to aim (default: the active one)")
     parser.add_argument("--light-theta", type=float, metavar="DEGREES", help="angle from the zenith; a light that "
                         "follows a Sun object stops following it")
     parser.add_argument("--light-phi", type=float, metavar="DEGREES", help="azimuth, from +X towards +Y")
@@ -53,14 +54,14 @@ def run(args, in_blender: bool) -> int:
 
 def relight_file(path, render_path, light_index=None, theta_deg=None, phi_deg=None, engine="EEVEE", samples=4,
                  resolution=None, add_lights=None) -> dict:
-    """Opens `path`, adds SH lights (`add_lights(scene)`, which returns a line for each), aims one light (default:
-    the active one), renders `render_path`; returns what it did."""
+    """Opens `path`, adds SH lights (`add_lights(scene)`), aims one light (default: the active one), renders
+    `render_path`; returns what it did."""
     if not os.path.isfile(path):
         raise InputError(f"no such file: {path}")
     bpy.ops.wm.open_mainfile(filepath=os.path.abspath(path), load_ui=False)
     scene = bpy.context.scene
-    for line in add_lights(scene) if add_lights else ():
-        print(f"prt: added SH light: {line}")
+    if add_lights:
+        add_lights(scene)
     if not scene.prt_lights:
         raise InputError(f"{path} has no SH lights; give --sun, --env or --sky, or add one in the sidebar's PRT tab")
     if theta_deg is not None or phi_deg is not None:

@@ -18,7 +18,8 @@ class Preset:
 
 
 PRESETS = {
-    "draft": Preset("Shadows to judge the lighting by: order 3, 64 rays per vertex (on the demo scene, est. error about 4 %)",
+    "draft": Preset("Shadows to judge the lighting by: order 3, 64 rays per vertex (est. error about 4 % on the "
+                    "demo scene)",
                     {"mode": "shadowed", "order": 3, "samples": 64, "target_error": 0.0, "max_samples": 16384,
                      "bounces": None}),
     "production": Preset("Order 4, each vertex sampled until its estimated error is below 1 %",
