@@ -22,6 +22,7 @@ POINT_BYTES = 9 * 8 + 8 + 8 + 1      # positions, normals, inward (float64 × 3 
 OCCLUDER_VERTEX_BYTES = 2 * 3 * 8    # world positions and the recentred copy the ray caster keeps
 TRIANGLE_BYTES = 8 * 3 + 114         # indices, and mathutils' BVHTree: 114 bytes a triangle (178 k triangles)
 PROCESS_BYTES = 64 << 20             # a process's chunk at work: 32 MB of basis values (REPLICATE_VALUES_AT_ONCE)
+SPAWNED_BYTES = 256 << 20            # a spawned worker itself: Blender, or Python with bpy (257 MB measured)
 HIT_BYTES = 48 + 170                 # a recorded hit (vertex, triangle, barycentric, weight) and its share of the
 #                                      bounce operator while it is built (corners, rows, columns, sorting keys)
 WARN_FRACTION = 0.8                  # of the available memory: beyond it the machine may start to swap
@@ -109,13 +110,14 @@ class BakeSize:
 
 def bake_bytes(size: BakeSize) -> int:
     """Peak memory of the bake in this process and its workers: the points and their transfer, the occluders and
-    their ray tree (once more per spawned worker), each process's working chunk, and in interreflected bakes the
-    recorded hits and the bounce operator built from them."""
+    their ray tree (once more per spawned worker, which is a Blender of its own), each process's working chunk,
+    and in interreflected bakes the recorded hits and the bounce operator built from them."""
     transfer = size.points * size.coefficients * size.channels * (4 + 3 * 8)  # float32 result, float64 bounces
     scene = size.occluder_vertices * OCCLUDER_VERTEX_BYTES + size.occluder_triangles * TRIANGLE_BYTES
-    copies = 1 + (size.processes - 1 if size.spawned else 0)
+    spawned = size.processes - 1 if size.spawned else 0
     hits = int(size.rays * size.hits_per_ray * HIT_BYTES)
-    return (size.points * POINT_BYTES * copies + transfer + scene * copies + size.processes * PROCESS_BYTES + hits)
+    return ((size.points * POINT_BYTES + scene) * (1 + spawned) + transfer + size.processes * PROCESS_BYTES + hits
+            + spawned * SPAWNED_BYTES)
 
 
 def stored_bytes(size: BakeSize) -> int:
