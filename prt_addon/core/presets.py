@@ -18,7 +18,7 @@ class Preset:
 
 
 PRESETS = {
-    "draft": Preset("Shadows to judge the lighting by: order 3, 64 rays per vertex (est. error about 4 % on the "
+    "draft": Preset("Shadows to judge the lighting by: order 3, 64 rays per vertex (est. error about 3 % on the "
                     "demo scene)",
                     {"mode": "shadowed", "order": 3, "samples": 64, "target_error": 0.0, "max_samples": 16384,
                      "bounces": None}),
