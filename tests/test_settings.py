@@ -37,8 +37,9 @@ def test_panel_property_has_the_settings_label_default_and_range(addon, setting)
 def test_command_line_option_has_the_settings_default_range_and_help(setting):
     option = bake_options()[setting.name]
     assert option.option_strings == ["--" + setting.name.replace("_", "-")]
-    assert option.default == (None if setting.auto else setting.default)
+    assert option.default is argparse.SUPPRESS  # left out when not given, so a preset's value can stand
     assert option.help.startswith(setting.description)
+    assert option.help.endswith(f"default {'auto' if setting.auto else setting.default}")
     if setting.choices:
         assert option.choices == [identifier for identifier, _, _ in setting.choices]
     else:

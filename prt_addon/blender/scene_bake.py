@@ -9,7 +9,7 @@ import sys
 import bpy
 import numpy as np
 
-from ..core import bake, job, subsurface, workers
+from ..core import bake, job, settings as spec, subsurface, workers
 from ..core.errors import InputError
 from ..core.progress import WrappingJob
 from . import fingerprint, geometry, materials, storage
@@ -115,8 +115,8 @@ class SceneBake(WrappingJob):
                 self.notes.append("no visible mesh besides the receivers casts shadows; "
                                   "each receiver is shadowed by the receivers only")
         solved = self.surfaces.all
-        self.job = job.TransferJob([surface.receiver for surface in solved], occluders, settings, workers,
-                                   worker_launch(),
+        self.job = job.TransferJob([surface.receiver for surface in solved], occluders, settings,
+                                   spec.worker_count(workers), worker_launch(),
                                    albedo=_albedo_channels([s.albedo for s in solved]) if bouncing else None)
         self.summary = None
 

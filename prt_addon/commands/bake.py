@@ -5,18 +5,21 @@ import os
 
 import bpy
 
+from ..blender import checks as scene_checks
 from ..blender.fingerprint import stale_line, stale_receivers
 from ..blender.scene_bake import SceneBake
-from ..core import settings as spec
+from ..core import checks, presets, settings as spec
 from ..core.bake import BakeSettings
-from ..core.errors import InputError
-from .common import log, names, open_file, warn, write_json
+from . import light_options
+from .common import log, names, open_file, write_json
 
 
 def add_parser(commands):
     parser = commands.add_parser("bake", help="bake SH transfer into a .blend file's meshes")
     parser.add_argument("file", nargs="?", help=".blend file to open (in Blender: defaults to the open file)")
     parser.add_argument("--objects", help="comma-separated receiver names (default: every visible mesh)")
+    parser.add_argument("--preset", type=str.lower, choices=list(presets.PRESETS),
+                        help="start from a preset's settings (see the README's table); options given override it")
     for setting in spec.BAKE + (spec.WORKERS,):
         add_setting(parser, setting)
     parser.add_argument("--output", help="where to save the baked file (default: over the opened file)")
@@ -24,51 +27,67 @@ def add_parser(commands):
     parser.add_argument("--stale-only", action="store_true",
                         help="rebake only the receivers whose geometry, transform, occluders, materials or settings "
                              "changed since their bake (or that have none); nothing is written when none did")
+    light_options.add_arguments(parser)
 
 
 def add_setting(parser, setting: spec.Setting):
-    """--name-with-dashes for a setting, its help text with its range and default from the one definition."""
-    if setting.auto:
-        kind, default, shown = _whole_or_auto(setting.label.lower()), None, "auto"
-    else:
-        kind, default, shown = type(setting.default), setting.default, setting.default
+    """--name-with-dashes for a setting, range-checked as it is read, its help text with its range and default from
+    the one definition. An option not given is left out of the arguments, so a preset's value can stand."""
+    shown = "auto" if setting.auto else setting.default
     limits = "" if setting.choices else f"{setting.range_text()}{' or auto' if setting.auto else ''}, "
-    parser.add_argument("--" + setting.name.replace("_", "-"), type=kind, default=default,
+    parser.add_argument("--" + setting.name.replace("_", "-"), type=_in_range(setting), default=argparse.SUPPRESS,
                         choices=[identifier for identifier, _, _ in setting.choices] or None,
                         help=f"{setting.description}; {limits}default {shown}")
 
 
-def _whole_or_auto(what: str):
+def _in_range(setting: spec.Setting):
+    kind = type(setting.default)
+    what = setting.label.lower()
+    number = ("a whole number" if kind is int else "a number") + (" or 'auto'" if setting.auto else "")
+
     def parse(text: str):
-        if text == "auto":
+        if setting.auto and text == "auto":
             return None
         try:
-            return int(text)
+            value = kind(text)
         except ValueError:
-            raise argparse.ArgumentTypeError(f"{what} must be a whole number or 'auto', not {text!r}") from None
+            raise argparse.ArgumentTypeError(f"{what} must be {number}, not {text!r}") from None
+        if not setting.contains(value):
+            raise argparse.ArgumentTypeError(f"{what} must be {setting.range_text()}, not {text}")
+        return value
     return parse
 
 
 def settings_from(args) -> BakeSettings:
-    return BakeSettings(**{setting.name: getattr(args, setting.name) for setting in spec.BAKE})
+    """The preset's settings (if any), overridden by the options given; the definitions' defaults for the rest."""
+    chosen = presets.preset_values(args.preset) if args.preset else {}
+    chosen.update({setting.name: getattr(args, setting.name) for setting in spec.BAKE if hasattr(args, setting.name)})
+    return BakeSettings(**chosen)
 
 
 def run(args, in_blender: bool) -> int:
+    settings = settings_from(args)
     open_file(args.file, required=not in_blender)
-    settings, receivers = settings_from(args), names(args.objects)
+    output = args.output or bpy.data.filepath
+    found = [scene_checks.output_check(output, required=True)]
+    checks.stop_on_errors(found)  # before the scene is gathered: a wrong --output fails at once
+    light_options.add_lights(bpy.context.scene, args)
+    receivers = names(args.objects)
     if args.stale_only:
         changed = stale_receivers(bpy.context, settings, receivers)
         log(stale_line(changed))
         receivers = [name for name, words in changed.items() if words]
         if not receivers:
             return 0
-    scene_bake = SceneBake(bpy.context, settings, receivers, workers=args.workers)
-    warn(scene_bake.problems + scene_bake.notes)
+    workers = getattr(args, "workers", spec.WORKERS.default)
+    scene_bake = SceneBake(bpy.context, settings, receivers, workers=workers)
+    found += scene_checks.scene_checks(bpy.context, scene_bake)
+    log("prt: checks before any ray:")
+    for check in found:
+        log(f"prt:   {check.line()}")
+    checks.stop_on_errors(found)
     summary = scene_bake.run(log=log)
     log(summary.line())
-    output = args.output or bpy.data.filepath
-    if not output:
-        raise InputError("the scene has no file; give --output")
     bpy.ops.wm.save_as_mainfile(filepath=os.path.abspath(output))
     if args.report:
         write_json(args.report, scene_bake.report().as_dict())

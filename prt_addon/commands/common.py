@@ -1,6 +1,7 @@
 """What several commands share: opening the file, names from a comma list, JSON reports, logging, and the add-on's
 registration for the bpy module."""
 
+import argparse
 from contextlib import contextmanager
 import json
 import os
@@ -36,6 +37,19 @@ def open_file(path, required: bool):
         bpy.ops.wm.open_mainfile(filepath=os.path.abspath(path), load_ui=False)
     elif required or not bpy.data.filepath and not bpy.data.objects:
         raise InputError("give a .blend file to open")
+
+
+def whole_number(option: str, at_least: int):
+    """An argparse type: a whole number of at least `at_least`, refused by name as it is read."""
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            value = at_least - 1
+        if value < at_least:
+            raise argparse.ArgumentTypeError(f"{option} takes a whole number of at least {at_least}, not {text!r}")
+        return value
+    return parse
 
 
 def names(text):

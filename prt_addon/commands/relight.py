@@ -10,20 +10,24 @@ from ..blender import lights
 from ..blender.relighting import Relighter
 from ..blender.render import ENGINES, engine_id, render
 from ..core.errors import InputError
+from . import light_options
+from .common import whole_number
 
 
 def add_parser(commands):
     parser = commands.add_parser("relight", help="re-render a baked .blend file under changed SH lights")
     parser.add_argument("file", help=".blend file with a bake and SH lights")
-    parser.add_argument("--light", type=int, help="index of the SH light to aim (default: the active one)")
+    parser.add_argument("--light", type=whole_number("--light", 0),
+                        help="index of the SH light to aim (default: the active one)")
     parser.add_argument("--light-theta", type=float, metavar="DEGREES", help="angle from the zenith; a light that "
                         "follows a Sun object stops following it")
     parser.add_argument("--light-phi", type=float, metavar="DEGREES", help="azimuth, from +X towards +Y")
     parser.add_argument("--engine", choices=ENGINES, default="EEVEE",
                         help="EEVEE: PRT colour × albedo texture; WORKBENCH: the PRT colour alone, faster")
-    parser.add_argument("--samples", type=int, default=4, help="EEVEE render samples")
+    parser.add_argument("--samples", type=whole_number("--samples", 1), default=4, help="EEVEE render samples")
     parser.add_argument("--resolution", type=_resolution, metavar="WxH", help="default: the file's")
     parser.add_argument("--render", required=True, metavar="OUT.png", help="where to write the image")
+    light_options.add_arguments(parser)
 
 
 def _resolution(text):
@@ -38,7 +42,8 @@ def _resolution(text):
 
 def run(args, in_blender: bool) -> int:
     done = relight_file(args.file, args.render, args.light, args.light_theta, args.light_phi,
-                        engine=args.engine, samples=args.samples, resolution=args.resolution)
+                        engine=args.engine, samples=args.samples, resolution=args.resolution,
+                        add_lights=lambda scene: light_options.add_lights(scene, args))
     width, height = done["resolution"]
     print(f"prt: rendered {done['path']} with {done['engine']} at {width}×{height} in {done['render_s']:.1f} s "
           f"(relit in {1000 * done['relight_s']:.0f} ms)")
@@ -48,14 +53,17 @@ def run(args, in_blender: bool) -> int:
 
 
 def relight_file(path, render_path, light_index=None, theta_deg=None, phi_deg=None, engine="EEVEE", samples=4,
-                 resolution=None) -> dict:
-    """Opens `path`, aims one light (default: the active one), renders `render_path`; returns what it did."""
+                 resolution=None, add_lights=None) -> dict:
+    """Opens `path`, adds SH lights (`add_lights(scene)`), aims one light (default: the active one), renders
+    `render_path`; returns what it did."""
     if not os.path.isfile(path):
         raise InputError(f"no such file: {path}")
     bpy.ops.wm.open_mainfile(filepath=os.path.abspath(path), load_ui=False)
     scene = bpy.context.scene
+    if add_lights:
+        add_lights(scene)
     if not scene.prt_lights:
-        raise InputError(f"{path} has no SH lights; add one in the sidebar's PRT tab")
+        raise InputError(f"{path} has no SH lights; give --sun, --env or --sky, or add one in the sidebar's PRT tab")
     if theta_deg is not None or phi_deg is not None:
         said = lights.aim_sun(scene, scene.prt_active_light if light_index is None else light_index, theta_deg,
                               phi_deg)

@@ -114,10 +114,7 @@ class TransferJob(Job):
         if self.finished:
             return True
         if self._runner is None:
-            use_workers = (self.workers > 1 and self.settings.mode != "unshadowed"
-                           and len(self.chunks) >= self.workers
-                           and self.total_vertices * self.settings.samples >= self.min_rays_for_workers)
-            self._runner = self._run_workers() if use_workers else self._run_here()
+            self._runner = self._run_workers() if self.uses_workers() else self._run_here()
         deadline = time.perf_counter() + budget_s
         while time.perf_counter() < deadline:
             if next(self._runner, StopIteration) is StopIteration:
@@ -128,6 +125,11 @@ class TransferJob(Job):
                 break
         self.progress.fraction = self.done_vertices / max(1, self.total_vertices)
         return self.finished
+
+    def uses_workers(self) -> bool:
+        """Whether worker processes bake beside this one: only for enough rays to repay starting them."""
+        return (self.workers > 1 and self.settings.mode != "unshadowed" and len(self.chunks) >= self.workers
+                and self.total_vertices * self.settings.samples >= self.min_rays_for_workers)
 
     def outcome(self) -> list:
         return self.results()

@@ -3,6 +3,7 @@ properties, the command line's options and help text, `BakeSettings`' defaults a
 from here, so they cannot disagree."""
 
 from dataclasses import dataclass
+import os
 
 MAX_ORDER = 10
 FEWEST_SAMPLES = 8
@@ -55,8 +56,13 @@ BOUNCES = Setting("bounces", "Bounces", "Interreflection bounces; auto: until th
                   "tolerance", 2, 0, 1000, auto=True)
 BOUNCE_TOLERANCE = Setting("bounce_tolerance", "Tolerance", "Relative error that auto bounces may leave out",
                            1e-3, 1e-8, 0.5)
-WORKERS = Setting("workers", "Workers", "Processes that cast rays in parallel (the result is the same)", 1, 1,
-                  MAX_WORKERS)
+WORKERS = Setting("workers", "Workers", "Processes that cast rays in parallel (the result is the same); 0: one per "
+                  "core of this machine", 0, 0, MAX_WORKERS)
 
 # What BakeSettings holds, in the order the panel and the help show them; workers only change how fast.
 BAKE = (MODE, ORDER, SAMPLES, TARGET_ERROR, MAX_SAMPLES, SEED, BOUNCES, BOUNCE_TOLERANCE)
+
+
+def worker_count(workers: int) -> int:
+    """The processes a Workers setting asks for: 0 means one per core, so a bake uses the machine it runs on."""
+    return workers or os.cpu_count() or 1

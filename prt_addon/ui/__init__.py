@@ -1,10 +1,12 @@
-"""The Blender interface: properties, operators, stale-only rebakes, panels, SH lights, validation, handlers,
-overlays, the heatmaps' legend and Drive Lights, registered in that order (the sidebar shows the bake's panel,
-then the lights', then validation)."""
+"""The Blender interface: properties, the checklist before a bake, presets, operators, stale-only rebakes, panels,
+SH lights, validation, handlers, overlays, the heatmaps' legend and Drive Lights, registered in that order (the
+sidebar shows the bake's panel, then the lights', then validation)."""
 
-from . import drive, handlers, heatmaps, lights, operators, overlays, panels, properties, stale, validation
+from . import (checks, drive, handlers, heatmaps, lights, operators, overlays, panels, presets, properties, stale,
+               validation)
 
-modules = (properties, operators, stale, panels, lights, validation, handlers, overlays, heatmaps, drive)
+modules = (properties, checks, presets, operators, stale, panels, lights, validation, handlers, overlays, heatmaps,
+           drive)
 
 
 def register():

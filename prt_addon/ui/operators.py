@@ -4,9 +4,10 @@ jobs (core.progress.Job) that the validation shares."""
 import bpy
 
 from ..blender import geometry, storage
-from ..blender.scene_bake import SceneBake
+from ..core import checks
 from ..core.errors import InputError
 from ..core.progress import format_duration
+from .checks import checked_bake
 
 
 def _report_outcome(operator, scene_bake):
@@ -118,6 +119,15 @@ class BakeJob(ModalJob):
         status = context.window_manager.prt_bake_status
         return context.mode == "OBJECT" and not status.running
 
+    def checked_bake(self, context, receivers=None):
+        """The bake, once its checks pass: the panel lists them, warnings are reported, errors stop it."""
+        scene_bake, found = checked_bake(context, receivers)
+        for check in found:
+            if check.level == checks.WARNING:
+                self.report({"WARNING"}, f"{check.subject}: {check.text}")
+        checks.stop_on_errors(found)
+        return scene_bake
+
     def finish(self, context, scene_bake, summary):
         _report_outcome(self, scene_bake)
         print(summary.line())
@@ -129,8 +139,7 @@ class PRT_OT_bake(BakeJob, bpy.types.Operator):
     bl_label = "Bake PRT"
 
     def make_job(self, context):
-        settings = context.scene.prt_bake
-        return SceneBake(context, settings.to_settings(), workers=settings.workers)
+        return self.checked_bake(context)
 
 
 class PRT_OT_clear(bpy.types.Operator):

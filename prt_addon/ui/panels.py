@@ -4,6 +4,8 @@ active object's stored bake. The Lights and Display panels are in lights.py, Val
 import bpy
 
 from ..blender import storage
+from .checks import draw_checklist
+from .presets import draw_presets
 from .stale import draw_status
 
 
@@ -23,6 +25,7 @@ class PRT_PT_bake(SidebarPanel, bpy.types.Panel):
         layout.use_property_split = True
         layout.use_property_decorate = False
         settings = context.scene.prt_bake
+        draw_presets(layout)
         layout.prop(settings, "mode")
         layout.prop(settings, "order")
         column = layout.column()
@@ -46,6 +49,7 @@ class PRT_PT_bake(SidebarPanel, bpy.types.Panel):
             row.operator("prt.bake", icon="RENDER_STILL")
             row.operator("prt.clear", icon="X", text="")
             layout.operator("prt.bake_stale", icon="FILE_REFRESH")
+            draw_checklist(layout, context)
 
 
 class PRT_PT_bake_info(SidebarPanel, bpy.types.Panel):

@@ -32,6 +32,15 @@ class PRT_PG_bake_settings(bpy.types.PropertyGroup):
             values["bounces"] = None
         return BakeSettings(**values)
 
+    def set_values(self, values: dict):
+        """Sets the named settings (a preset's); bounces None means auto, as in BakeSettings."""
+        for name, value in values.items():
+            if name == "bounces":
+                self.auto_bounces = value is None
+                if value is None:
+                    continue
+            setattr(self, name, value)
+
 
 class PRT_PG_job_status(bpy.types.PropertyGroup):
     """What a panel shows while a modal job (a bake, a validation) runs (window-manager level: never saved)."""

@@ -14,7 +14,6 @@ from bpy.props import CollectionProperty, StringProperty
 
 from ..blender import geometry, storage
 from ..blender.fingerprint import stale_line, stale_receivers
-from ..blender.scene_bake import SceneBake
 from .operators import BakeJob
 from .registration import classes_and_properties
 
@@ -68,7 +67,7 @@ class PRT_OT_bake_stale(BakeJob, bpy.types.Operator):
         changed = stale_receivers(context, settings.to_settings())
         self.report({"INFO"}, stale_line(changed))
         stale = [name for name, words in changed.items() if words]
-        return SceneBake(context, settings.to_settings(), stale, workers=settings.workers) if stale else None
+        return self.checked_bake(context, stale) if stale else None
 
 
 def draw_status(layout, context, ob):

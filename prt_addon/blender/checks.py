@@ -1,0 +1,108 @@
+"""Checks before any ray, gathered from the scene: where the bake will be saved, what it will cost (core.checks
+grades memory and time from the gathered bake and a timed sample of it), and what is wrong with its objects. The
+bake operator, the panel's Check button and `prt bake` all run these, so they find the same things."""
+
+import os
+import tempfile
+
+import bpy
+import numpy as np
+
+from ..core import checks
+from ..core.checks import ERROR, INFO, WARNING, Check
+from ..core.workers import FORK, WORKER_START_S
+from . import geometry
+
+
+def output_check(output: str | None, required: bool) -> Check:
+    """Where the bake will be saved: `output`, else the open file. On the command line saving is part of the
+    bake (`required`: a problem is an error); in the interface it is the artist's next save (a warning)."""
+    path = output or bpy.data.filepath
+    if path:
+        return checks.writable_check(path, "output", required)
+    if required:
+        return Check(ERROR, "output", "the scene has no file to save over; give --output")
+    return Check(INFO, "output", "the file is not saved yet: the bake stays in memory until you save it")
+
+
+def all_checks(context, scene_bake, output: str | None, required: bool) -> list[Check]:
+    return [output_check(output, required)] + scene_checks(context, scene_bake)
+
+
+def scene_checks(context, scene_bake) -> list[Check]:
+    """Workers, memory, time, then each object's problems, then what the gathering found (objects not baked,
+    notes). `scene_bake` has gathered everything and cast no ray."""
+    job, settings = scene_bake.job, scene_bake.settings
+    processes = job.workers if job.uses_workers() else 1
+    spawned = processes > 1 and job.worker_command != FORK
+    parallel = min(processes, os.cpu_count() or 1)
+    sample = checks.timed_sample(job.receivers, job.occluders, settings)
+    seconds = checks.estimated_seconds(sample, job.total_vertices, parallel, WORKER_START_S if spawned else 0.0)
+    found = [checks.workers_check(processes, tempfile.gettempdir()),
+             checks.memory_check(bake_size(scene_bake, sample, processes, spawned), checks.available_memory()),
+             checks.time_check(sample, seconds, settings, parallel)]
+    casts_rays = settings.mode != "unshadowed"
+    receivers = scene_bake.objects
+    others = [ob for ob in geometry.visible_mesh_objects(context) if ob not in receivers] if casts_rays else []
+    for ob in receivers + others:
+        found += object_checks(ob, receiver=ob in receivers, casts_rays=casts_rays)
+    found += [Check(WARNING, "not baked", problem) for problem in scene_bake.problems]
+    found += [Check(INFO, "note", note) for note in scene_bake.notes]
+    return found
+
+
+def bake_size(scene_bake, sample: checks.TimedSample, processes: int, spawned: bool) -> checks.BakeSize:
+    job = scene_bake.job
+    receivers = scene_bake.surfaces.receivers
+    split = [len(s.corner_points) for s in receivers if s.corner_points is not None]
+    occluders = job.occluders
+    return checks.BakeSize(
+        points=job.total_vertices,
+        stored_rows=sum(len(s.receiver.positions) for s in receivers if s.corner_points is None) + sum(split),
+        split_corners=sum(split),
+        occluder_vertices=len(occluders.vertices) if occluders else 0,
+        occluder_triangles=len(occluders.triangles) if occluders else 0,
+        order=scene_bake.settings.order,
+        channels=job.albedo[0].shape[1] if job.albedo else 1,
+        rays=job.total_vertices * scene_bake.settings.samples if occluders else 0,
+        hits_per_ray=sample.hits / sample.rays if sample.rays else 0.0,
+        processes=processes, spawned=spawned)
+
+
+def object_checks(ob, receiver: bool, casts_rays: bool) -> list[Check]:
+    """A mirrored object (its faces' winding turned, which decides their front for contact and bounced light),
+    and for receivers: hidden in renders, zero-area faces, open or non-manifold edges."""
+    found = []
+    name = repr(ob.name)
+    if casts_rays and ob.matrix_world.determinant() < 0:
+        scale = (f"negative scale ({', '.join(f'{value:g}' for value in ob.scale)})" if min(ob.scale) < 0 else
+                 "mirrored by a parent's negative scale")
+        found.append(Check(WARNING, name, f"{scale}: contact and bounced light take its faces' backs for their "
+                                          f"fronts; apply the scale (Object > Apply > Scale)"))
+    if not receiver:
+        return found
+    if ob.hide_render:
+        found.append(Check(WARNING, name, "hidden in renders (Disable in Renders): it is baked, but a render "
+                                          "will not show it"))
+    mesh = ob.data
+    areas = np.empty(len(mesh.polygons))
+    mesh.polygons.foreach_get("area", areas)
+    degenerate = int((areas <= 0.0).sum())
+    if degenerate:
+        found.append(Check(WARNING, name, f"{degenerate} zero-area faces: they have no normal, and vertices only on "
+                                          f"them get zero transfer (Mesh > Clean Up > Degenerate Dissolve)"))
+    faces_per_edge = edge_face_counts(mesh)
+    boundary, shared = int((faces_per_edge == 1).sum()), int((faces_per_edge > 2).sum())
+    if boundary or shared:
+        said = [f"{boundary} open boundary edges"] * bool(boundary) + [
+            f"{shared} non-manifold edges (more than two faces)"] * bool(shared)
+        found.append(Check(INFO, name, " and ".join(said) + ": rays may pass through the openings into the "
+                                                             "inside (expected for floors, walls and cards)"))
+    return found
+
+
+def edge_face_counts(mesh) -> np.ndarray:
+    """How many faces use each edge."""
+    edges = np.empty(len(mesh.loops), dtype=np.int32)
+    mesh.loops.foreach_get("edge_index", edges)
+    return np.bincount(edges, minlength=len(mesh.edges))

@@ -1,0 +1,221 @@
+"""Checks before any ray: findings graded error, warning, info or ok, what a bake will cost in memory and time,
+and whether a path can be written. Errors stop a bake before work is spent; the rest is listed.
+
+Only arithmetic, the operating system's figures and a short timed sample of the bake itself; what is gathered from
+Blender's data is blender/checks.py's."""
+
+from dataclasses import dataclass, replace
+import os
+import time
+
+import numpy as np
+
+from . import bake
+from .errors import InputError
+from .progress import format_duration
+
+ERROR, WARNING, INFO, OK = "error", "warning", "info", "ok"
+LEVELS = (ERROR, WARNING, INFO, OK)
+
+# Memory, in bytes, measured or read off the arrays the bake allocates:
+POINT_BYTES = 9 * 8 + 8 + 8 + 1      # positions, normals, inward (float64 × 3 each); std error, rays, skipped
+OCCLUDER_VERTEX_BYTES = 2 * 3 * 8    # world positions and the recentred copy the ray caster keeps
+TRIANGLE_BYTES = 8 * 3 + 114         # indices, and mathutils' BVHTree: 114 bytes a triangle (178 k triangles)
+PROCESS_BYTES = 64 << 20             # a process's chunk at work: 32 MB of basis values (REPLICATE_VALUES_AT_ONCE)
+SPAWNED_BYTES = 256 << 20            # a spawned worker itself: Blender, or Python with bpy (257 MB measured)
+HIT_BYTES = 48 + 170                 # a recorded hit (vertex, triangle, barycentric, weight) and its share of the
+#                                      bounce operator while it is built (corners, rows, columns, sorting keys)
+WARN_FRACTION = 0.8                  # of the available memory: beyond it the machine may start to swap
+
+SAMPLE_RAYS = 4096                   # rays in the timed sample
+SAMPLE_POINTS = (4, 128)             # the fewest and most points it takes them from
+
+
+@dataclass(frozen=True)
+class Check:
+    """One finding: its level, what it is about (an object's name, the output, memory, time) and the problem or
+    the figure, in words."""
+    level: str
+    subject: str
+    text: str
+
+    def line(self) -> str:
+        return f"{self.level:<7} {self.subject}: {self.text}"
+
+
+def errors(checks) -> list[Check]:
+    return [check for check in checks if check.level == ERROR]
+
+
+def stop_on_errors(checks):
+    """Raises InputError naming every error, so nothing is baked."""
+    found = errors(checks)
+    if found:
+        raise InputError("; ".join(f"{check.subject}: {check.text}" for check in found) + "; nothing was baked")
+
+
+# -- paths --------------------------------------------------------------------------------------------------------
+def writable_check(path: str, subject: str, required: bool) -> Check:
+    """Whether a file can be saved at `path`: its folder exists and takes new files (Blender saves to a temporary
+    file beside the target, then renames it), and an existing file there is not read-only. A problem is an error
+    where saving is `required`, else a warning."""
+    path = os.path.abspath(path)
+    folder = os.path.dirname(path)
+    level = ERROR if required else WARNING
+    if not os.path.isdir(folder):
+        missing = folder
+        while not os.path.exists(os.path.dirname(missing)) and os.path.dirname(missing) != missing:
+            missing = os.path.dirname(missing)
+        what = "is not a folder" if os.path.exists(missing) else "does not exist"
+        return Check(level, subject, f"cannot save {path}: the folder {missing} {what}")
+    if not os.access(folder, os.W_OK | os.X_OK):
+        return Check(level, subject, f"cannot save {path}: no permission to write in {folder}")
+    if os.path.isdir(path) or os.path.exists(path) and not os.access(path, os.W_OK):
+        return Check(level, subject, f"cannot save {path}: it is a folder or read-only")
+    return Check(OK, subject, f"{path} can be written")
+
+
+def workers_check(processes: int, temporary_folder: str) -> Check:
+    """Workers read the job from a file in the temporary folder and leave their results there; they never read the
+    .blend file, so an unsaved file bakes with workers as well."""
+    if processes == 1:
+        return Check(OK, "workers", "one process (too few rays to repay starting workers)")
+    if not os.path.isdir(temporary_folder) or not os.access(temporary_folder, os.W_OK | os.X_OK):
+        return Check(ERROR, "workers", f"{processes} processes exchange the job through the temporary folder "
+                                       f"{temporary_folder}, which cannot be written; set TMPDIR to a writable "
+                                       f"folder, or bake with 1 worker")
+    return Check(OK, "workers", f"{processes} processes, sharing the job through {temporary_folder}")
+
+
+# -- memory ---------------------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class BakeSize:
+    """What a bake holds, counted before it starts."""
+    points: int               # shading points solved (receivers, and bouncers in interreflected bakes)
+    stored_rows: int          # rows written on the receivers' meshes: points, or face corners where split
+    split_corners: int        # face corners of split meshes (their `_prt_point` attribute)
+    occluder_vertices: int
+    occluder_triangles: int
+    order: int
+    channels: int             # 1 grey, 3 coloured (interreflected bakes over coloured albedo)
+    rays: int                 # the first round's rays: points × samples (0 without rays)
+    hits_per_ray: float       # interreflected: recorded hits per ray (from the timed sample), else 0
+    processes: int            # processes that cast rays
+    spawned: bool             # spawned workers load their own copy of the job
+
+    @property
+    def coefficients(self) -> int:
+        return self.order * self.order
+
+
+def bake_bytes(size: BakeSize) -> int:
+    """Peak memory of the bake in this process and its workers: the points and their transfer, the occluders and
+    their ray tree (once more per spawned worker, which is a Blender of its own), each process's working chunk,
+    and in interreflected bakes the recorded hits and the bounce operator built from them."""
+    transfer = size.points * size.coefficients * size.channels * (4 + 3 * 8)  # float32 result, float64 bounces
+    scene = size.occluder_vertices * OCCLUDER_VERTEX_BYTES + size.occluder_triangles * TRIANGLE_BYTES
+    spawned = size.processes - 1 if size.spawned else 0
+    hits = int(size.rays * size.hits_per_ray * HIT_BYTES)
+    return ((size.points * POINT_BYTES + scene) * (1 + spawned) + transfer + size.processes * PROCESS_BYTES + hits
+            + spawned * SPAWNED_BYTES)
+
+
+def stored_bytes(size: BakeSize) -> int:
+    """The attributes written on the meshes (kept in memory and in the saved file): float32 vectors of 3
+    coefficients per channel, the error, and each split corner's point."""
+    vectors = -(-size.coefficients // 3) * 3
+    return size.stored_rows * (vectors * size.channels + 1) * 4 + size.split_corners * 4
+
+
+def available_memory() -> int | None:
+    """Bytes the system can still give without swapping: MemAvailable from /proc/meminfo (Linux), else the free
+    physical pages; None where neither is known."""
+    try:
+        with open("/proc/meminfo", encoding="ascii") as meminfo:
+            for line in meminfo:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except OSError:
+        pass
+    try:
+        return os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+    except (ValueError, OSError, AttributeError):
+        return None
+
+
+def memory_check(size: BakeSize, available: int | None) -> Check:
+    needed, stored = bake_bytes(size), stored_bytes(size)
+    said = f"the bake needs about {format_bytes(needed)}, its result {format_bytes(stored)}"
+    if available is None:
+        return Check(INFO, "memory", f"{said}; the memory available is unknown here")
+    if needed + stored > available:
+        return Check(ERROR, "memory", f"{said}, more than the {format_bytes(available)} available; lower the order, "
+                                      f"the samples or the workers, or bake fewer objects at a time")
+    if needed + stored > WARN_FRACTION * available:
+        return Check(WARNING, "memory", f"{said}, close to the {format_bytes(available)} available")
+    return Check(OK, "memory", f"{said}, of {format_bytes(available)} available")
+
+
+def format_bytes(count: int) -> str:
+    for unit, scale in (("GB", 1 << 30), ("MB", 1 << 20), ("kB", 1 << 10)):
+        if count >= scale:
+            return f"{count / scale:.1f} {unit}"
+    return f"{count} B"
+
+
+# -- time -----------------------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class TimedSample:
+    """A few of the bake's points baked for real, with its settings, on its occluders."""
+    points: int
+    rays: int
+    hits: int         # recorded hits (interreflected)
+    seconds: float    # baking the sample
+    tree_s: float     # building the ray tree, which the bake does once
+
+
+def timed_sample(receivers, occluders, settings: bake.BakeSettings, rays: int = SAMPLE_RAYS) -> TimedSample:
+    """Bakes about `rays` rays' worth of points spread evenly over all receivers (the first round only, as the
+    bake starts) with the real ray caster on the real occluders, and times it."""
+    if settings.mode == "unshadowed" or occluders is None or not len(occluders.triangles):
+        return TimedSample(0, 0, 0, 0.0, 0.0)
+    start = time.perf_counter()
+    caster = bake.RayCaster(occluders)
+    tree_s = time.perf_counter() - start
+    positions, normals, inward = (np.concatenate([getattr(r, name) if getattr(r, name) is not None else
+                                                  np.zeros_like(r.positions) for r in receivers])
+                                  for name in ("positions", "normals", "inward"))
+    count = int(np.clip(rays // settings.samples, *SAMPLE_POINTS))
+    chosen = np.unique(np.linspace(0, len(positions) - 1, count).astype(np.int64))
+    probe = bake.Receiver("timed sample", positions[chosen], normals[chosen], 0, inward[chosen])
+    work = bake.bake_chunk(caster, probe, 0, len(chosen), replace(settings, target_error=0.0))
+    cast, start = 0, time.perf_counter()
+    while True:
+        try:
+            cast += next(work)
+        except StopIteration as finished:
+            result = finished.value
+            break
+    seconds = time.perf_counter() - start
+    hits = len(result.records.vertex) if result.records is not None else 0
+    return TimedSample(len(chosen), cast, hits, seconds, tree_s)
+
+
+def estimated_seconds(sample: TimedSample, points: int, processes: int, start_s: float = 0.0) -> float:
+    """The first round's time: the sample's time per point over every point, shared by the processes, plus the
+    ray tree and the workers' start."""
+    if not sample.points:
+        return 0.0
+    return sample.tree_s + start_s + sample.seconds / sample.points * points / max(1, processes)
+
+
+def time_check(sample: TimedSample, seconds: float, settings: bake.BakeSettings, processes: int) -> Check:
+    if not sample.points:
+        return Check(OK, "time", "no rays to cast: the transfer is exact in closed form")
+    said = (f"about {format_duration(seconds)} with {processes} process{'es' if processes > 1 else ''} "
+            f"(from {sample.rays} rays in {1000 * sample.seconds:.0f} ms)")
+    if settings.target_error > 0:
+        said += f"; the target error may add rounds, up to {settings.max_samples // settings.samples}× the rays"
+    if settings.mode == "interreflected":
+        said += ", plus the bounces"
+    return Check(INFO, "time", said)

@@ -1,0 +1,74 @@
+"""The checklist under the Bake button: the checks before any ray (blender.checks), run on demand by Check and by
+every bake, kept at window-manager level (never saved) for the panel to list."""
+
+import bpy
+from bpy.props import CollectionProperty, EnumProperty, PointerProperty, StringProperty
+
+from ..blender.checks import all_checks
+from ..blender.scene_bake import SceneBake
+from ..core import checks
+from ..core.errors import InputError
+from .registration import classes_and_properties
+
+ICONS = {checks.ERROR: "CANCEL", checks.WARNING: "ERROR", checks.INFO: "INFO", checks.OK: "CHECKMARK"}
+LEVEL_ITEMS = [(level, level.capitalize(), "How serious the finding is") for level in checks.LEVELS]
+
+
+class PRT_PG_check(bpy.types.PropertyGroup):
+    level: EnumProperty(items=LEVEL_ITEMS)
+    subject: StringProperty()
+    text: StringProperty()
+
+
+class PRT_PG_checklist(bpy.types.PropertyGroup):
+    items: CollectionProperty(type=PRT_PG_check)
+
+
+def checked_bake(context, receivers=None):
+    """The bake the panel's settings describe (of `receivers`, or the default ones), gathered but not started, and
+    every check on it, stored for the panel. The bake is None when it cannot start (the checklist then holds why)."""
+    settings = context.scene.prt_bake
+    try:
+        scene_bake = SceneBake(context, settings.to_settings(), receivers, workers=settings.workers)
+    except InputError as problem:
+        scene_bake, found = None, [checks.Check(checks.ERROR, "bake", str(problem))]
+    else:
+        found = all_checks(context, scene_bake, output=None, required=False)
+    items = context.window_manager.prt_checks.items
+    items.clear()
+    for check in found:
+        item = items.add()
+        item.level, item.subject, item.text = check.level, check.subject, check.text
+    return scene_bake, found
+
+
+class PRT_OT_check_bake(bpy.types.Operator):
+    """Check the bake before any ray is cast: output, memory, time, and the objects' problems"""
+    bl_idname = "prt.check_bake"
+    bl_label = "Check"
+
+    @classmethod
+    def poll(cls, context):
+        return context.mode == "OBJECT" and not context.window_manager.prt_bake_status.running
+
+    def execute(self, context):
+        _, found = checked_bake(context)
+        errors = len(checks.errors(found))
+        warnings = sum(check.level == checks.WARNING for check in found)
+        self.report({"WARNING" if errors else "INFO"}, f"PRT checks: {errors} errors, {warnings} warnings")
+        return {"FINISHED"}
+
+
+def draw_checklist(layout, context):
+    """The Check button and the last checklist, one line per finding."""
+    layout.operator("prt.check_bake", icon="VIEWZOOM")
+    column = layout.column(align=True)
+    for item in context.window_manager.prt_checks.items:
+        column.label(text=f"{item.subject}: {item.text}", icon=ICONS[item.level])
+
+
+classes = (PRT_PG_check, PRT_PG_checklist, PRT_OT_check_bake)
+
+register, unregister = classes_and_properties(classes, [
+    (bpy.types.WindowManager, "prt_checks", PointerProperty(type=PRT_PG_checklist)),
+])
