@@ -99,3 +99,12 @@ def test_a_shared_group_hands_each_point_its_hits_with_unbiased_weights():
     sums = np.bincount(records.vertex, weights=records.weight, minlength=len(positions))
     assert abs(sums.mean() - 1.0) < 0.01 and sums.std() < 0.1 and sums.std() > 1e-6
     assert np.all(records.weight > 0)
+
+
+def test_a_chunk_whose_points_all_need_no_rays_bakes_exactly_without_any():
+    """Split points that all see the whole sky (nothing above them) form no ray group at all."""
+    receiver = shared_vertices(4)
+    result = bake_points(receiver, bake.Occluders(ROOF - [0, 0, 3.0], np.array([[0, 1, 2], [0, 2, 3]]),
+                                                  ROOF - [0, 0, 3.0]), order=3, samples=64)
+    assert result.rays.sum() == 0 and result.skipped.all()
+    np.testing.assert_allclose(result.transfer, np.tile(bake.unshadowed_transfer(3, NORMALS), (4, 1)), atol=1e-7)
