@@ -151,7 +151,7 @@ def records_in_chunk_order(the_job):
     each chunk and whenever its records arrived (a stable sort keeps each chunk's own order)."""
     records = interreflect.HitRecords.concatenate(the_job.records)
     order = np.argsort(records.vertex // bake.CHUNK_VERTICES, kind="stable")
-    return [getattr(records, name)[order] for name in ("vertex", "triangle", "barycentric", "weight")]
+    return [getattr(records, name)[order] for name in interreflect.HitRecords.FIELDS]
 
 
 @pytest.mark.parametrize("launch", [[sys.executable, "-c"], workers.FORK], ids=["spawned", "forked"])
@@ -175,3 +175,55 @@ def test_workers_bring_back_the_hit_records_bit_identically(launch, chunks_baked
         np.testing.assert_array_equal(expected_field, returned_field)
     np.testing.assert_array_equal(one.transfer, two.transfer)
     np.testing.assert_array_equal(one.std_error, two.std_error)
+
+
+def open_box(cuts=6):
+    """A box of 5 walls open at +Y (a Cornell box without its light), each a cuts × cuts grid facing inwards with
+    its own vertices, and the walls as flat polygons: (vertices, triangles, normals, polygons)."""
+    ticks = np.linspace(-1.0, 1.0, cuts + 1)
+    u, v = (grid.ravel() for grid in np.meshgrid(ticks, ticks, indexing="ij"))
+    quads = [(i * (cuts + 1) + j, (i + 1) * (cuts + 1) + j, (i + 1) * (cuts + 1) + j + 1, i * (cuts + 1) + j + 1)
+             for i in range(cuts) for j in range(cuts)]
+    walls = {(2, -1.0): (0, 1), (2, 1.0): (0, 1), (1, -1.0): (0, 2), (0, -1.0): (1, 2), (0, 1.0): (1, 2)}
+    vertices, triangles, normals, polygons = [], [], [], []
+    for (axis, side), (first, second) in walls.items():
+        wall = np.zeros((len(u), 3))
+        wall[:, axis], wall[:, first], wall[:, second] = side, u, v
+        inward = np.zeros(3)
+        inward[axis] = -side
+        base = sum(len(w) for w in vertices)
+        for a, b, c, d in quads:
+            for tri in ((a, b, c), (a, c, d)):
+                p = wall[list(tri)]
+                facing = np.dot(np.cross(p[1] - p[0], p[2] - p[0]), inward) > 0
+                triangles.append([base + k for k in (tri if facing else tri[::-1])])
+        vertices.append(wall)
+        normals.append(np.tile(inward, (len(wall), 1)))
+        corners = wall[[0, cuts, len(wall) - 1, len(wall) - 1 - cuts]]
+        polygons.append(corners)
+    return np.concatenate(vertices), np.array(triangles), np.concatenate(normals), polygons
+
+
+def test_the_estimate_covers_the_bounces_noise():
+    """Flat walls are exact closed-form occluders, so the direct transfer has no noise at all; the bounces gather
+    over Monte Carlo hits and do. Two seeds must differ as much as their estimates say (within 1.5 ×), and a
+    shadowed bake of the same walls estimates exactly zero away from the walls' seams (at a seam the next wall's
+    plane grazes the ray origins, where its rays and its closed form may disagree)."""
+    vertices, triangles, normals, polygons = open_box()
+    occluders = bake.Occluders(vertices, triangles, vertices.copy(), polygons, solved_vertices=len(vertices))
+    albedo = np.full((len(vertices), 1), 0.7)
+    results = []
+    for seed in (0, 1):
+        the_job = job.TransferJob([bake.Receiver("box", vertices, normals, 9)], occluders,
+                                  bake.BakeSettings(mode="interreflected", order=3, samples=256, bounces=None,
+                                                    seed=seed), albedo=[albedo])
+        results.append(the_job.run()[0])
+    shadowed = job.TransferJob([bake.Receiver("box", vertices, normals, 9)], occluders,
+                               bake.BakeSettings(order=3, samples=256)).run()[0]
+    inside = (np.abs(vertices) > 1.0 - 1e-9).sum(axis=1) == 1
+    assert inside.sum() > 100 and shadowed.std_error[inside].max() == 0.0
+    assert results[0].std_error[inside].min() > 0.0
+    difference = np.linalg.norm(results[0].transfer - results[1].transfer, axis=-1)
+    expected = np.hypot(results[0].std_error, results[1].std_error)
+    ratio = np.sqrt(np.mean(difference ** 2) / np.mean(expected ** 2))
+    assert 1 / 1.5 <= ratio <= 1.5, ratio

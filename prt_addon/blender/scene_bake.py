@@ -3,17 +3,20 @@
 Nothing is written until every receiver is baked: a cancelled or failed bake leaves the previous data as it was.
 """
 
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 import sys
 
 import bpy
 import numpy as np
 
-from ..core import bake, job, settings as spec, subsurface, workers
+from ..core import bake, interpolation, job, settings as spec, subsurface, workers
 from ..core.errors import InputError
-from ..core.progress import WrappingJob
+from ..core.progress import JobSequence, WrappingJob
 from . import fingerprint, geometry, materials, storage
 from .occluders import occluders_from_depsgraph
+
+
+INTERPOLATION_KEYS = ("est_interp_rms_rel_error", "est_interp_max_rel_error", "interp_points")
 
 
 def worker_launch():
@@ -118,7 +121,23 @@ class SceneBake(WrappingJob):
         self.job = job.TransferJob([surface.receiver for surface in solved], occluders, settings,
                                    spec.worker_count(workers), worker_launch(),
                                    albedo=_albedo_channels([s.albedo for s in solved]) if bouncing else None)
+        self.probes, self.probe_job = self._probe_job(occluders, spec.worker_count(workers))
+        self.sequence = JobSequence([self.job, self.probe_job],
+                                    [self.job.total_vertices, max(1, self.probe_job.total_vertices)], "PRT bake")
         self.summary = None
+
+    def _probe_job(self, occluders, workers):
+        """Points inside the receivers' faces, baked after them to measure what storage per vertex loses between
+        vertices (core.interpolation); an interreflected bake's probes measure its direct transfer."""
+        probes = {surface.receiver.name: interpolation.face_probes(
+                      surface.triangles, surface.receiver.positions, surface.receiver.normals,
+                      interpolation.probe_count(len(surface.receiver.positions)), self.settings.seed)
+                  for surface in self.surfaces.receivers}
+        probes = {name: found for name, found in probes.items() if len(found.positions)}
+        receivers = [bake.Receiver(name, found.positions, found.normals, bake.Receiver.key_for(name + " probes"))
+                     for name, found in probes.items()]
+        settings = replace(self.settings, mode="shadowed") if self.settings.mode == "interreflected" else self.settings
+        return probes, job.TransferJob(receivers, occluders, settings, workers, worker_launch())
 
     def _bouncing_surfaces(self, context, depsgraph, receiver_names):
         found = []
@@ -132,8 +151,8 @@ class SceneBake(WrappingJob):
                 self.notes.append(f"{problem}; it casts shadows but reflects no light")
         return found
 
-    def inner(self) -> job.TransferJob:
-        return self.job
+    def inner(self) -> JobSequence:
+        return self.sequence
 
     def outcome(self) -> job.Summary:
         """Stores the bake, once, and returns its summary."""
@@ -144,6 +163,7 @@ class SceneBake(WrappingJob):
         results = self.job.results()[: len(self.surfaces.receivers)]  # bouncers are not stored
         self.summary = self.job.summary(results)
         self._count_vertices()
+        self._measure_interpolation(results)
         self.subsurface_objects = []
         for ob, surface, result in zip(self.objects, self.surfaces.receivers, results):
             material = materials.subsurface_material(ob) if self.settings.mode != "unshadowed" else None
@@ -151,11 +171,35 @@ class SceneBake(WrappingJob):
                 result.transfer = with_subsurface(surface, result.transfer, *material)
                 self.subsurface_objects.append(ob.name)
         for ob, surface, result in zip(self.objects, self.surfaces.receivers, results):
-            extra = {"time_s": self.summary.time_s, fingerprint.FINGERPRINT_KEY: self.fingerprints[ob.name]}
+            extra = {"time_s": self.summary.time_s, fingerprint.FINGERPRINT_KEY: self.fingerprints[ob.name],
+                     **{key: self.summary.per_object[ob.name][key] for key in INTERPOLATION_KEYS
+                        if key in self.summary.per_object[ob.name]}}
             if self.summary.bounces is not None:
                 extra["bounces"] = self.summary.bounces
             storage.write_transfer(ob, result, extra, self.settings, surface.corner_points, surface.split_vertices)
         return self.summary
+
+    def _measure_interpolation(self, results):
+        """The probes' interpolation error per object and overall, into the summary; the bake's time includes them."""
+        scale = bake.unshadowed_norm(self.settings.order)
+        probe_results = dict(zip(self.probes, self.probe_job.results()))
+        direct = self.job.direct or [result.transfer for result in results]
+        everything = []
+        for ob, result, transfer in zip(self.objects, results, direct):
+            if ob.name not in self.probes:
+                continue
+            found = probe_results[ob.name]
+            squared = interpolation.interpolation_errors(self.probes[ob.name], found.transfer, found.std_error,
+                                                         transfer, result.std_error, scale)
+            everything.append(squared)
+            rms, worst = interpolation.summarise(squared)
+            self.summary.per_object[ob.name].update(est_interp_rms_rel_error=rms, est_interp_max_rel_error=worst,
+                                                    interp_points=len(squared))
+        (self.summary.est_interp_rms_rel_error,
+         self.summary.est_interp_max_rel_error) = interpolation.summarise(np.concatenate(everything or [[]]))
+        self.summary.interp_points = self.probe_job.total_vertices
+        self.summary.interp_rays = self.probe_job.rays
+        self.summary.time_s = self.sequence.progress.elapsed
 
     def _count_vertices(self):
         """The summary in mesh vertices, with the shading points they were split into (core.corners)."""

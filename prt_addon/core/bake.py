@@ -332,8 +332,8 @@ def _records(hits, used):
         return None
     if not hits:
         return interreflect.HitRecords.empty()
-    row, triangle, barycentric, weight = (np.concatenate(part) for part in zip(*hits))
-    return interreflect.HitRecords(row, triangle, barycentric, weight / used[row])
+    row, triangle, barycentric, weight, replicate = (np.concatenate(part) for part in zip(*hits))
+    return interreflect.HitRecords(row, triangle, barycentric, weight / used[row], replicate)
 
 
 def _next_rounds(error, rays, settings: BakeSettings):
@@ -437,7 +437,7 @@ def _blocked_round(caster, origins, frames, unshadowed, flat, keys, round_index,
     beta = 1.0 - blocked_weights.mean(axis=(2, 3))[..., None, None]  # (g, k, 1, 1)
     estimate = beta * unshadowed[:, :, None] + (1.0 - beta) * all_rays - blocked_rays  # (g, k, R, n²)
     estimate -= flat_blocked[:, :, None]
-    round_hits = (_round_hits(caster, origins, cast, occluded, triangle, distance, weights)
+    round_hits = (_round_hits(caster, origins, cast, occluded, triangle, distance, weights, per_replicate)
                   if settings.mode == "interreflected" else None)
     return estimate.mean(2), estimate.var(2, ddof=1) / replicates, round_hits
 
@@ -467,19 +467,20 @@ def _weighted_means(directions, weights, blocked_weights, order):
     return means[:, 0], means[:, 1]
 
 
-def _round_hits(caster, origins, cast, occluded, triangle, distance, weights):
-    """(row in g·k, triangle, barycentric, weight) for every blocked ray that hit a front face, once for each row of
-    the casting group whose estimate it enters, with that row's weight for it."""
+def _round_hits(caster, origins, cast, occluded, triangle, distance, weights, per_replicate):
+    """(row in g·k, triangle, barycentric, weight, replicate) for every blocked ray that hit a front face, once for
+    each row of the casting group whose estimate it enters, with that row's weight for it."""
     group, ray = np.nonzero(occluded)
     barycentric, front = caster.front_hits(origins[group], cast[group, ray], triangle[group, ray],
                                            distance[group, ray])
     group, ray, triangle, barycentric = group[front], ray[front], triangle[group, ray][front], barycentric[front]
+    replicate = ray // per_replicate
     if weights is None:
-        return group, triangle, barycentric, np.ones(len(group))
+        return group, triangle, barycentric, np.ones(len(group)), replicate
     size = weights.shape[1]
     hit_weights = weights.reshape(len(weights), size, -1)[group, :, ray]  # (H, k)
     hit, member = np.nonzero(hit_weights > 0.0)
-    return group[hit] * size + member, triangle[hit], barycentric[hit], hit_weights[hit, member]
+    return group[hit] * size + member, triangle[hit], barycentric[hit], hit_weights[hit, member], replicate[hit]
 
 
 def vertex_keys(receiver: Receiver, rows: np.ndarray) -> np.ndarray:

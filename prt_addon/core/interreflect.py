@@ -28,16 +28,26 @@ class HitRecords:
     triangle: np.ndarray     # (H,) int64 index of the hit triangle
     barycentric: np.ndarray  # (H, 3) float64 weights of the triangle's corners at the hit point
     weight: np.ndarray       # (H,) float64 the ray's weight in its vertex's estimate
+    replicate: np.ndarray    # (H,) int64 the replicate the ray belongs to (core.bake: independent lattice shifts)
+
+    FIELDS = ("vertex", "triangle", "barycentric", "weight", "replicate")
 
     @staticmethod
     def empty():
-        return HitRecords(np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros((0, 3)), np.zeros(0))
+        return HitRecords(np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros((0, 3)), np.zeros(0),
+                          np.zeros(0, np.int64))
 
     @staticmethod
     def concatenate(parts):
         parts = [p for p in parts if len(p.vertex)] or [HitRecords.empty()]
-        return HitRecords(*(np.concatenate([getattr(p, name) for p in parts])
-                            for name in ("vertex", "triangle", "barycentric", "weight")))
+        return HitRecords(*(np.concatenate([getattr(p, name) for p in parts]) for name in HitRecords.FIELDS))
+
+    def of_replicate(self, replicate: int, replicates: int) -> "HitRecords":
+        """The records of one replicate's rays, weighted as that replicate's estimate alone weighs them (each
+        replicate holds 1/R of every vertex's rays)."""
+        mine = self.replicate == replicate
+        return HitRecords(self.vertex[mine], self.triangle[mine], self.barycentric[mine],
+                          self.weight[mine] * replicates, self.replicate[mine])
 
 
 @dataclass
@@ -138,3 +148,15 @@ def interreflect(direct, albedo, operator: BounceOperator, bounces=None, toleran
         report.converged = report.converged or not np.any(current)  # the series ended: nothing is left out
     report.time_s = time.perf_counter() - start
     return total, report
+
+
+def gather_std_error(records: HitRecords, triangles, direct, albedo, replicates: int, bounces=None,
+                     tolerance=1e-3) -> np.ndarray:
+    """(V,) the standard error the bounces add: the interreflected total recomputed from each replicate's hit
+    records alone, and the spread of those R totals ÷ √R, as the direct transfer's replicates give its error.
+    Per vertex, the norm over coefficients, as RMS over colour channels."""
+    totals = np.stack([interreflect(direct, albedo, bounce_operator(records.of_replicate(replicate, replicates),
+                                                                    triangles, len(albedo)), bounces, tolerance)[0]
+                       for replicate in range(replicates)])
+    variance = totals.var(axis=0, ddof=1) / replicates  # (V, C, n²)
+    return np.sqrt(variance.sum(-1).mean(-1))

@@ -55,6 +55,12 @@ class Summary:
     albedo_clamped: bool = False
     split_vertices: int = 0  # vertices baked once per distinct corner normal
     points: int = 0          # shading points baked: the vertices and the split vertices' further normals
+    # What storage per vertex loses between vertices (core.interpolation), from `interp_points` points inside faces
+    # baked with `interp_rays` more rays; None when not measured.
+    est_interp_rms_rel_error: float | None = None
+    est_interp_max_rel_error: float | None = None
+    interp_points: int = 0
+    interp_rays: int = 0
 
     def line(self) -> str:
         bounced = (f", {self.bounces} bounces in {self.phases_s.get('bounces_s', 0.0):.2f} s "
@@ -63,10 +69,14 @@ class Summary:
             bounced += f"; auto bounces NOT converged: stopped at the limit of {self.bounces} bounces"
         split = (f" ({self.split_vertices} split by their corner normals: {self.points} points)"
                  if self.split_vertices else "")
+        between = ("" if self.est_interp_rms_rel_error is None else
+                   f"; between vertices est. RMS {self.est_interp_rms_rel_error:.4f}, max "
+                   f"{self.est_interp_max_rel_error:.4f} ({self.interp_points} points, {self.interp_rays} rays)")
         return (f"PRT bake: {self.objects} objects, {self.vertices} vertices{split}, order {self.order} {self.mode}: "
                 f"{self.time_s:.2f} s, {self.rays} rays, {self.rays_per_s / 1e3:.0f} k rays/s, "
                 f"{self.skipped_vertices} vertices exact without rays, "
-                f"est. RMS rel. error {self.est_rms_rel_error:.4f}, max {self.est_max_rel_error:.4f}{bounced}")
+                f"est. RMS rel. error {self.est_rms_rel_error:.4f}, max {self.est_max_rel_error:.4f}{between}"
+                f"{bounced}")
 
 
 class TransferJob(Job):
@@ -104,6 +114,7 @@ class TransferJob(Job):
         self.records = []  # interreflected: HitRecords per chunk, rows already global
         self.albedo = albedo
         self.bounce_report = None
+        self.direct = None  # interreflected: each receiver's transfer before the bounces, once they have run
         self.phase_times = {}
         self._runner = None
         self.finished = False
@@ -147,8 +158,8 @@ class TransferJob(Job):
         self._skipped[receiver_index][rows] = result.skipped
         if result.records is not None:
             solved = self._vertex_offsets[receiver_index] + rows[result.records.vertex]
-            self.records.append(interreflect.HitRecords(solved, result.records.triangle,
-                                                         result.records.barycentric, result.records.weight))
+            self.records.append(interreflect.HitRecords(solved, result.records.triangle, result.records.barycentric,
+                                                         result.records.weight, result.records.replicate))
 
     def _run_here(self):
         caster = bake.RayCaster(self.occluders) if self.settings.mode != "unshadowed" else None
@@ -257,10 +268,19 @@ class TransferJob(Job):
         operator = interreflect.bounce_operator(records, self.occluders.triangles, self.total_vertices)
         self.phase_times["gather_setup_s"] = time.perf_counter() - start
         direct = np.concatenate(self._transfer).astype(np.float64)
+        albedo = np.concatenate(self.albedo)
         total, self.bounce_report = interreflect.interreflect(
-            direct, np.concatenate(self.albedo), operator, self.settings.bounces, self.settings.bounce_tolerance)
+            direct, albedo, operator, self.settings.bounces, self.settings.bounce_tolerance)
         self.phase_times["bounces_s"] = self.bounce_report.time_s
+        self.direct = np.split(direct, self._vertex_offsets[1:-1])
         self._transfer = np.split(total.astype(np.float32), self._vertex_offsets[1:-1])
+        # The bounces gather over the same Monte Carlo rays: their noise joins the direct transfer's.
+        start = time.perf_counter()
+        gathered = interreflect.gather_std_error(records, self.occluders.triangles, direct, albedo,
+                                                 self.settings.replicates, self.settings.bounces,
+                                                 self.settings.bounce_tolerance)
+        self._std_error = np.split(np.hypot(np.concatenate(self._std_error), gathered), self._vertex_offsets[1:-1])
+        self.phase_times["bounce_error_s"] = time.perf_counter() - start
 
     # -- results --------------------------------------------------------------------------------------
     def results(self) -> list[ReceiverResult]:

@@ -65,8 +65,7 @@ def load_results(path) -> list[tuple[int, bake.ChunkResult]]:
 def _load_records(data, slot):
     if f"records_vertex_{slot}" not in data:
         return None
-    return interreflect.HitRecords(*(data[f"records_{name}_{slot}"]
-                                     for name in ("vertex", "triangle", "barycentric", "weight")))
+    return interreflect.HitRecords(*(data[f"records_{name}_{slot}"] for name in interreflect.HitRecords.FIELDS))
 
 
 def bake_chunks(caster, receivers, settings, chunk_indices, out_file, stream):
@@ -87,7 +86,7 @@ def bake_chunks(caster, receivers, settings, chunk_indices, out_file, stream):
         for name in ("transfer", "std_error", "rays", "skipped"):
             arrays[f"{name}_{slot}"] = getattr(result, name)
         if result.records is not None:
-            for name in ("vertex", "triangle", "barycentric", "weight"):
+            for name in interreflect.HitRecords.FIELDS:
                 arrays[f"records_{name}_{slot}"] = getattr(result.records, name)
         done.append(chunk_index)
         print(f"PRT-PROGRESS {len(rows)} {rays}", file=stream, flush=True)

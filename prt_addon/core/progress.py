@@ -102,3 +102,25 @@ class WrappingJob(Job):
 
     def cancel(self):
         self.inner().cancel()
+
+
+class JobSequence(Job):
+    """Jobs run one after another as one job: its progress weighs each by its share of the work."""
+
+    def __init__(self, jobs: list, shares: list, label: str):
+        self.jobs = jobs
+        self.shares = [share / sum(shares) for share in shares]
+        self.current = 0
+        self.progress = Progress(label)
+
+    def step(self, budget_s: float) -> bool:
+        if self.current < len(self.jobs) and self.jobs[self.current].step(budget_s):
+            self.current += 1
+        running = self.jobs[self.current].progress.fraction if self.current < len(self.jobs) else 0.0
+        self.progress.fraction = sum(self.shares[:self.current]) + (
+            self.shares[self.current] * running if self.current < len(self.jobs) else 0.0)
+        return self.current == len(self.jobs)
+
+    def cancel(self):
+        if self.current < len(self.jobs):
+            self.jobs[self.current].cancel()

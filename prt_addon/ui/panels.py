@@ -77,6 +77,9 @@ class PRT_PT_bake_info(SidebarPanel, bpy.types.Panel):
         column.label(text=f"Order {meta['order']}, {meta['mode']}, {meta['samples']} samples")
         column.label(text=f"{meta['rays']:,} rays in {meta.get('time_s', 0.0):.1f} s")
         column.label(text=f"Est. error RMS {meta['est_rms_rel_error']:.4f}, max {meta['est_max_rel_error']:.4f}")
+        if "est_interp_rms_rel_error" in meta:
+            column.label(text=f"Between vertices RMS {meta['est_interp_rms_rel_error']:.4f}, "
+                              f"max {meta['est_interp_max_rel_error']:.4f}")
         column.label(text=f"Baked {meta['date']}")
 
 
