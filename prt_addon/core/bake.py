@@ -47,6 +47,12 @@ CONVENTION_VERSION = 3
 # of both. Faces count as facing when their normals are at least this far from perpendicular.
 FACING_COSINE = -0.05
 ON_SURFACE = 0.01  # of the ray offset: how far from a surface a point still lies on it
+# How far behind a surface a point may be and still be in front of it, of the ray offset: the step into a point's own
+# faces is tangent to its normal, so a vertex resting on a floor with a normal leaning a few degrees off it (a
+# Weighted Normal box's bottom corners lean 0.6°) dips under the floor by about that much. A face of the point's own
+# fan that faces against it (a crease folded past 90°) has the step behind it by sin(dihedral angle) of a step, more
+# than this unless the fold closes to within 3° of flat: such faces never count.
+IN_FRONT = 0.05
 
 
 @dataclass
@@ -196,22 +202,19 @@ class RayCaster:
 
     def touched_surfaces(self, surface, normals: np.ndarray, inward: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(normals (c, 3), heights (c,)): of the occluder face within the ray offset of each point that faces it
-        most, with the point's vertex on its front side, its normal and the point's height above it; zero normal
-        where there is none. The points are tested a little inside their own faces, at `surface` (c, 3) + offset ·
+        most, with the point on its front side, its normal and the point's height above it; zero normal where
+        there is none. The points are tested a little inside their own faces, at `surface` (c, 3) + offset ·
         `inward`: their own and adjacent faces face the same way or lie behind them (a crease, a knife edge) and
         never count. Only points with a facing face within two offsets of their surface position are tested
         one by one: the corner points of one vertex share that first search."""
         touched, heights = np.zeros_like(normals), np.zeros(len(surface))
         for row in self._may_touch(surface, normals):
             point, normal = surface[row] + self.offset * inward[row], normals[row]
-            found = [(face_normal.dot(normal), face_normal, np.dot(point - np.asarray(nearest), face_normal),
-                      np.dot(surface[row] - np.asarray(nearest), face_normal))
+            found = [(face_normal.dot(normal), face_normal, np.dot(point - np.asarray(nearest), face_normal))
                      for nearest, face_normal, _, _ in self.tree.find_nearest_range(tuple(point), self.offset)]
-            # Front side: judged at the vertex itself, which may lie on the surface while the step into its own faces
-            # (tangent to a normal that leans a little) dips under it.
-            facing = [face for face in found if face[0] < FACING_COSINE and face[3] > -ON_SURFACE * self.offset]
+            facing = [face for face in found if face[0] < FACING_COSINE and face[2] > -IN_FRONT * self.offset]
             if facing:
-                _, touched[row], heights[row], _ = min(facing, key=itemgetter(0))
+                _, touched[row], heights[row] = min(facing, key=itemgetter(0))
         return touched, heights
 
     def _may_touch(self, surface, normals) -> np.ndarray:
