@@ -168,6 +168,7 @@ addEventListener("keydown", (event) => {
   }
   event.preventDefault();
   relight();
+  renderer.render(scene, camera);  // now, so what a key did is on screen before the next animation frame
 });
 
 addEventListener("resize", () => {

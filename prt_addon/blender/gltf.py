@@ -47,7 +47,7 @@ def export(scene, path: str, profile_name: str) -> dict:
             _link_copy(temporary, scene.camera)
         _run_exporter(temporary, path)
     top_order = max(orders)
-    _finish_file(path, packs, {
+    _finish_file(path, scene.name, packs, {
         "profile": profile.name, "convention": gltf_pack.CONVENTION, "order": top_order, "window": window,
         "light_source": light_source, "active_light": getattr(scene, "prt_active_light", 0),
         "lights": gltf_pack.light_extras(shining, top_order)})
@@ -145,7 +145,7 @@ def _run_exporter(temporary, path):
             window.scene = shown
 
 
-def _finish_file(path, packs, scene_extras):
+def _finish_file(path, scene_name, packs, scene_extras):
     """Adds extras, data textures and the original names to the exporter's GLB."""
     with open(path, "rb") as file:
         document, binary = glb.read(file.read())
@@ -158,6 +158,6 @@ def _finish_file(path, packs, scene_extras):
     for item in document.get("nodes", []) + document.get("meshes", []):
         item["name"] = item.get("name", "").removeprefix(COPY_PREFIX)
     scene = document["scenes"][document.get("scene", 0)]
-    scene["extras"] = {"prt": scene_extras}
+    scene["name"], scene["extras"] = scene_name, {"prt": scene_extras}
     with open(path, "wb") as file:
         file.write(glb.write(document, binary))
