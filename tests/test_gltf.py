@@ -16,12 +16,14 @@ import pytest
 
 from browser import chromium, open_viewer, viewer_state
 from conftest import ROOT, run_cli
+from core.rotations import matrix_from_euler_zyz
 from prt_addon.blender import lights, sample_scenes
 from prt_addon.blender.relighting import Relighter
 from prt_addon.blender.render import render
 from prt_addon.blender.scene_bake import SceneBake
 from prt_addon.commands.view import VIEWER, address, start_server, stop_server
 from prt_addon.core import bake, glb, gltf_pack, lobes, rotation, sh, shading
+from prt_addon.core import lights as core_lights
 
 SIZE = (320, 240)
 MAX_RMS = 0.02  # the issue's bound: screenshot against Blender's render, RMS over the objects' pixels (sRGB, 0-1)
@@ -246,6 +248,33 @@ def test_the_viewers_sh_maths_is_the_add_ons(tmp_path):
     assert np.allclose(got["rotated"], rotation.rotate(coefficients, matrix), atol=1e-12)
     for kind in ("hanning", "lanczos"):
         assert np.allclose(got[kind], lobes.window(order, kind), atol=1e-15)
+
+
+def test_the_viewer_turns_lights_as_the_add_on_does():
+    """viewer/lights.js, driven as keys drive it, against the add-on's lights in Blender's frame turned into glTF's:
+    a sun's θ and φ, an environment turned about Z by Δφ and Y by Δθ (Drive Lights' Rz(Δφ)·Ry(Δθ)·R), windowed."""
+    order = 5
+    pixels = np.random.default_rng(5).uniform(0.0, 2.0, size=(16, 32, 3))
+    environment = core_lights.Environment(("sky.hdr", 32, 16), tuple(np.eye(3).ravel()), (1.0, 0.5, 0.25),
+                                          pixels=lambda: pixels)
+    sun = core_lights.Sun(shading.direction_from_angles(0.6, -1.0), 0.2, (2.0, 2.0, 2.0))
+    extras = {"window": "hanning", "active_light": 0, "lights": gltf_pack.light_extras([sun, environment], order)}
+    steps = [(0, -math.radians(5), 0.0), (0, 0.0, math.radians(5)), (1, math.radians(5), math.radians(-5))]
+    request = {"extras": extras, "order": order, "steps": steps}
+    done = subprocess.run(["node", str(ROOT / "tests" / "js" / "light_values.mjs")], input=json.dumps(request),
+                          capture_output=True, text=True, timeout=60, check=True)
+    got = json.loads(done.stdout)
+    theta, phi, turn = 0.6, -1.0, np.eye(3)
+    for (index, delta_theta, delta_phi), totals in zip(steps, got):
+        if index == 0:
+            theta, phi = theta + delta_theta, phi + delta_phi
+        else:
+            turn = matrix_from_euler_zyz(delta_phi, delta_theta, 0.0) @ turn  # Rz(Δφ)·Ry(Δθ)
+        expected = core_lights.LightCache().totals(
+            [core_lights.Sun(shading.direction_from_angles(theta, phi), 0.2, (2.0, 2.0, 2.0)),
+             core_lights.Environment(environment.image, tuple(turn.ravel()), environment.rgb, pixels=lambda: pixels)],
+            [order], "hanning")[order]
+        assert np.allclose(totals, gltf_pack.to_gltf_frame(expected), atol=1e-9)
 
 
 # -- the viewer ----------------------------------------------------------------------------------------------
