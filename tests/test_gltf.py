@@ -277,6 +277,22 @@ def test_the_viewer_turns_lights_as_the_add_on_does():
         assert np.allclose(totals, gltf_pack.to_gltf_frame(expected), atol=1e-9)
 
 
+@pytest.mark.parametrize("channels", [None, 3])
+def test_the_shaders_light_uniform_meets_the_packed_transfer_as_the_add_on_shades(channels):
+    """Σ_j dot(T_j, uLight[c·V + j]) over the packed VEC4s (as the vertex shader forms it) is shading.shade's
+    radiance, for grey transfer (every light channel meets it) and coloured (each its own)."""
+    order, rng = 4, np.random.default_rng(9)
+    shape = (30, order * order) if channels is None else (30, channels, order * order)
+    transfer, light = rng.normal(size=shape).astype(np.float32), rng.normal(size=(3, order * order))
+    packed = gltf_pack.pack(transfer, gltf_pack.PROFILES["web"], "Cube")
+    request = {"layout": packed.extras(), "total": light.tolist()}
+    done = subprocess.run(["node", str(ROOT / "tests" / "js" / "light_uniform.mjs")], input=json.dumps(request),
+                          capture_output=True, text=True, timeout=60, check=True, cwd=VIEWER)
+    uniform = np.array(json.loads(done.stdout)).reshape(3, -1)
+    rows = np.hstack(list(packed.attributes.values()))
+    assert np.allclose(rows @ uniform.T, shading.shade(transfer, light), atol=1e-4)
+
+
 # -- the viewer ----------------------------------------------------------------------------------------------
 def read_png(path) -> np.ndarray:
     """(H, W, 4) floats, top row first, as Blender reads the PNG."""

@@ -99,6 +99,7 @@ def _link_copy(temporary, ob):
     copy = ob.copy()
     copy.name = COPY_PREFIX + ob.name
     copy.animation_data_clear()
+    copy.constraints.clear()  # their targets are not in the temporary scene; the world transform is kept instead
     copy.parent = None
     copy.matrix_world = ob.matrix_world.copy()
     temporary.collection.objects.link(copy)
