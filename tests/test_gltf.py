@@ -173,6 +173,9 @@ def test_exported_transfer_is_the_stored_transfer_rotated_into_gltfs_frame(demo_
 
 
 def test_the_export_button_leaves_the_users_data_as_it_was(demo_file, tmp_path):
+    """Also with Blender's glTF exporter turned off, as a user may have it: the export turns it on for the session."""
+    import addon_utils  # Blender's, importable once bpy is
+    addon_utils.disable("io_scene_gltf2")
     bpy.ops.wm.open_mainfile(filepath=str(demo_file))
     scene = bpy.context.scene
     scene.prt_display.show_prt = True

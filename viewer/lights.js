@@ -4,7 +4,7 @@
 import {axisRotation, blenderToGltf, directionFromAngles, multiply, rotate, windowFactors, zonalToSh} from "./sh.js";
 
 export const MAX_LIGHTS = 8;
-const DEGREE = Math.PI / 180;
+export const DEGREE = Math.PI / 180;
 const IDENTITY = [[1, 0, 0], [0, 1, 0], [0, 0, 1]];
 const TO_GLTF = [[1, 0, 0], [0, 0, 1], [0, -1, 0]];  // glTF (x, y, z) = Blender (x, z, -y)
 const FROM_GLTF = [[1, 0, 0], [0, 0, -1], [0, 1, 0]];
@@ -106,5 +106,3 @@ export class LightSet {
 function sunDirection(light) {
   return blenderToGltf(directionFromAngles(light.theta, light.phi));
 }
-
-export {DEGREE};

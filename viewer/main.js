@@ -154,7 +154,7 @@ const KEYS = {
 const TURNS = {q: [-1, 0], a: [1, 0], w: [0, -1], e: [0, 1]};
 
 addEventListener("keydown", (event) => {
-  if (!lights) return;
+  if (!camera) return;  // still loading
   const key = event.key.length === 1 ? event.key.toLowerCase() : event.key;
   if (key >= "1" && key <= "8") {
     lights.select(Number(key) - 1);

@@ -21,6 +21,7 @@ from .lights import scene_lights
 
 COPY_PREFIX = "PRT glTF "  # names of the temporary copies; taken off again in the file
 EXPORT_SCENE = "PRT glTF export"
+EXPORTER_ADDON = "io_scene_gltf2"
 DISPLAY_SETTINGS = ("show_prt", "use_albedo", "mode", "window")  # so the relighting leaves the user's data alone
 
 
@@ -130,6 +131,9 @@ def _write_packing(mesh, packed, corner_points):
 def _run_exporter(temporary, path):
     """Blender's glTF exporter on the temporary scene alone; it leaves the window showing the scene it found, so the
     user's is put back."""
+    if not hasattr(bpy.types, "EXPORT_SCENE_OT_gltf"):  # the user turned it off
+        import addon_utils  # Blender's, importable once bpy is
+        addon_utils.enable(EXPORTER_ADDON, default_set=False)  # for this session only, not the preferences
     window = bpy.context.window
     shown = window.scene if window else None
     try:
