@@ -410,6 +410,19 @@ def test_f1_f2_switch_lighting_and_t_n_l_toggle(demo_url, browser, tmp_path):
     page.close()
 
 
+def test_a_mouse_drag_orbits_the_camera_and_leaves_the_lights(demo_url, browser, tmp_path):
+    page = open_viewer(browser, f"{demo_url}?readout=0")
+    before, lights = shot(page, tmp_path / "before.png"), viewer_state(page)["lights"]
+    page.mouse.move(160, 120)
+    page.mouse.down()
+    page.mouse.move(220, 110, steps=5)
+    page.mouse.up()
+    page.evaluate("new Promise(requestAnimationFrame)")  # the orbited view drawn
+    assert changed(shot(page, tmp_path / "after.png"), before)
+    assert viewer_state(page)["lights"] == lights
+    page.close()
+
+
 def test_prt_view_exports_serves_on_loopback_and_stops(demo_file):
     process = subprocess.Popen([sys.executable, "-m", "prt_addon", "view", str(demo_file)], cwd=ROOT,
                                env={**os.environ, "PYTHONPATH": str(ROOT)},
