@@ -5,6 +5,7 @@
 #   - a virtual environment with the bpy module of the newest supported Blender this machine can run (the newest
 #     one whose Python is found), numpy and the test tools; it says which it installed;
 #   - the sample scenes, built in that Blender's file format (sample_scenes/make_scenes.py);
+#   - the browser viewer's three.js (npm install in viewer/) and Debian's chromium, which its tests drive;
 #   - `python -m prt_addon demo`, which writes a PNG and a JSON report into demo_output/.
 # Options:
 #   --blender X.Y   that Blender instead (one of the supported versions below)
@@ -89,6 +90,19 @@ fi
 echo "setup: installed Blender $("$venv/bin/python" -c 'import bpy; print(bpy.app.version_string)') (bpy $bpy_version) on Python $("$venv/bin/python" -c 'import platform; print(platform.python_version())') in $venv"
 
 "$venv/bin/python" sample_scenes/make_scenes.py
+
+# The viewer's tests drive Debian's chromium through Playwright (never a browser download of Playwright's own).
+missing=""
+for tool in chromium npm; do
+  command -v "$tool" >/dev/null 2>&1 || missing="$missing $tool"
+done
+if [ -n "$missing" ]; then
+  echo "setup: installing Debian packages for the browser viewer:$missing"
+  sudo_cmd=""; [ "$(id -u)" = 0 ] || sudo_cmd="sudo"
+  $sudo_cmd apt-get update -q
+  DEBIAN_FRONTEND=noninteractive $sudo_cmd apt-get install -y -q $missing
+fi
+(cd viewer && npm install --no-audit --no-fund --silent)
 
 if [ "$demo" = 1 ]; then
   "$venv/bin/python" -m prt_addon demo --output demo_output

@@ -1,25 +1,38 @@
 """`prt export`: one object's bake as a .npz for use outside Blender: per shading point (the vertices, then the
-further corner normals of split vertices), with each face corner's point where the bake is per corner."""
+further corner normals of split vertices), with each face corner's point where the bake is per corner; or the
+scene's baked meshes as a glTF binary packed for a profile (blender.gltf)."""
 
 import json
 
 import bpy
 import numpy as np
 
-from ..blender import geometry, mesh_arrays, storage
+from ..blender import geometry, gltf, mesh_arrays, storage
 from ..core.errors import InputError
+from ..core.gltf_pack import PROFILES
 from .common import open_file
 
 
 def add_parser(commands):
-    parser = commands.add_parser("export", help="write one object's bake to a .npz for use outside Blender")
+    parser = commands.add_parser("export", help="write one object's bake to a .npz, or the baked meshes to a .glb, "
+                                 "for use outside Blender")
     parser.add_argument("file", help=".blend file")
-    parser.add_argument("--object", required=True, help="object name")
-    parser.add_argument("--npz", required=True, help="output .npz path")
+    parser.add_argument("--object", help="object name (with --npz)")
+    parser.add_argument("--npz", help="output .npz path")
+    parser.add_argument("--gltf", metavar="OUT.glb", help="the visible baked meshes and the camera as glTF binary")
+    parser.add_argument("--profile", choices=list(PROFILES), default="web",
+                        help="how the transfer is packed (--gltf): web (WebGL's attribute budget, beyond it a data "
+                        "texture), godot (CUSTOM0-3 only), generic (no limit)")
 
 
 def run(args, in_blender: bool) -> int:
+    if (args.npz is None) == (args.gltf is None):
+        raise InputError("give one of --npz OUT.npz (with --object) or --gltf OUT.glb")
     open_file(args.file, required=True)
+    if args.gltf:
+        return _run_gltf(bpy.context.scene, args.gltf, args.profile)
+    if args.object is None:
+        raise InputError("--npz needs --object NAME")
     ob = bpy.data.objects.get(args.object)
     if ob is None or ob.type != "MESH":
         raise InputError(f"no mesh object named {args.object!r} in {args.file}")
@@ -44,3 +57,16 @@ def run(args, in_blender: bool) -> int:
     split = f" ({meta.get('split_vertices', 0)} split: {len(local)} points)" if corner_points is not None else ""
     print(f"prt: wrote {args.npz}: {len(mesh.vertices)} vertices{split}, order {meta['order']}, {meta['mode']}")
     return 0
+
+
+def _run_gltf(scene, path, profile) -> int:
+    print(f"prt: {gltf_summary(gltf.export(scene, path, profile))}")
+    return 0
+
+
+def gltf_summary(done: dict) -> str:
+    """One line: where, which profile, how each mesh was packed, under which light COLOR_0 was shaded."""
+    packs = "; ".join(f"{name}: order {p.order} × {p.channels} in {p.vec4s} VEC4 "
+                      f"{'attributes' if p.texture is None else 'texels of a data texture'}"
+                      for name, p in done["packs"].items())
+    return f"wrote {done['path']} ({done['profile']} profile): {packs}; COLOR_0 under {done['light_source']}"

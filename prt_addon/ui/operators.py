@@ -1,9 +1,10 @@
-"""Operators: the bake (modal in the UI, synchronous in background mode) and clearing a bake; the modal driver of
-jobs (core.progress.Job) that the validation shares."""
+"""Operators: the bake (modal in the UI, synchronous in background mode), clearing a bake and the glTF export; the
+modal driver of jobs (core.progress.Job) that the validation shares."""
 
 import bpy
+from bpy_extras.io_utils import ExportHelper
 
-from ..blender import geometry, storage
+from ..blender import geometry, gltf, storage
 from ..core import checks
 from ..core.errors import InputError
 from ..core.progress import format_duration
@@ -165,6 +166,32 @@ class PRT_OT_clear(bpy.types.Operator):
         return {"FINISHED"}
 
 
-classes = (PRT_OT_bake, PRT_OT_clear)
+class PRT_OT_export_gltf(bpy.types.Operator, ExportHelper):
+    """Export the visible baked meshes and the camera as glTF binary: transfer rotated into glTF's frame and packed
+    for the profile, the SH lights in the extras, the colours under the current lights as COLOR_0"""
+    bl_idname = "prt.export_gltf"
+    bl_label = "Export glTF"
+    filename_ext = ".glb"
+    filter_glob: bpy.props.StringProperty(default="*.glb", options={"HIDDEN"})
+    profile: bpy.props.EnumProperty(name="Profile", items=[
+        ("web", "Web", "WebGL's budget of 12 VEC4 attributes; beyond it a float data texture"),
+        ("godot", "Godot", "CUSTOM0-3 only (16 floats); beyond it the export is refused"),
+        ("generic", "Generic", "As many VEC4 attributes as the order needs")], default="web")
+
+    @classmethod
+    def poll(cls, context):
+        return context.mode == "OBJECT" and bool(gltf.baked_objects(context.scene))
+
+    def execute(self, context):
+        try:
+            done = gltf.export(context.scene, self.filepath, self.profile)
+        except InputError as problem:
+            self.report({"ERROR"}, str(problem))
+            return {"CANCELLED"}
+        self.report({"INFO"}, f"PRT: wrote {done['path']} ({len(done['objects'])} objects, {self.profile})")
+        return {"FINISHED"}
+
+
+classes = (PRT_OT_bake, PRT_OT_clear, PRT_OT_export_gltf)
 
 register, unregister = bpy.utils.register_classes_factory(classes)

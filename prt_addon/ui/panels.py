@@ -50,6 +50,7 @@ class PRT_PT_bake(SidebarPanel, bpy.types.Panel):
             row.operator("prt.clear", icon="X", text="")
             layout.operator("prt.bake_stale", icon="FILE_REFRESH")
             draw_checklist(layout, context)
+            layout.operator("prt.export_gltf", icon="EXPORT")
 
 
 class PRT_PT_bake_info(SidebarPanel, bpy.types.Panel):

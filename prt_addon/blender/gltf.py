@@ -1,0 +1,168 @@
+"""The bake as a glTF binary (.glb), through Blender's own glTF exporter, without changing the user's data.
+
+The exporter runs on temporary copies in a temporary scene: each baked object (world transform kept, unparented,
+its own materials rather than the PRT display's) with its stored `_prt_*` attributes replaced by the profile's
+packing (core.gltf_pack) of the transfer rotated into glTF's frame, and `prt_color`, the colours under the current
+lights, which the exporter writes as COLOR_0; and the scene's camera. Everything temporary is removed afterwards,
+whatever happens. Then the GLB gets what the exporter cannot write: the convention and the SH lights in the
+scene's extras, each mesh's packing in its extras, data textures as buffer views, and the original names.
+"""
+
+import contextlib
+import os
+
+import bpy
+import numpy as np
+
+from ..core import glb, gltf_pack, lights as core_lights, shading
+from ..core.errors import InputError
+from . import display, materials, storage
+from .lights import scene_lights
+
+COPY_PREFIX = "PRT glTF "  # names of the temporary copies; taken off again in the file
+EXPORT_SCENE = "PRT glTF export"
+EXPORTER_ADDON = "io_scene_gltf2"
+DISPLAY_SETTINGS = ("show_prt", "use_albedo", "mode", "window")  # so the relighting leaves the user's data alone
+
+
+def export(scene, path: str, profile_name: str) -> dict:
+    """Writes the scene's baked meshes to `path` (.glb) packed for the profile; returns what it wrote. Nothing is
+    created before the packing fits the profile (a refusal names the limit)."""
+    profile = gltf_pack.PROFILES.get(profile_name)
+    if profile is None:
+        raise InputError(f"unknown profile {profile_name!r}: expected one of {', '.join(gltf_pack.PROFILES)}")
+    baked = [(ob, *storage.read_transfer(ob.data), storage.corner_points_of(ob.data)) for ob in baked_objects(scene)]
+    if not baked:
+        raise InputError("no visible mesh has a PRT bake to export")
+    packs = {ob.name: gltf_pack.pack(gltf_pack.to_gltf_frame(transfer).astype(np.float32), profile, ob.name)
+             for ob, transfer, _, _ in baked}
+    shining, window, light_source = _lights(scene)
+    orders = {meta["order"] for _, _, meta, _ in baked}
+    totals = core_lights.LightCache().totals(shining, orders, window)
+    with _export_scene(scene) as temporary:
+        for ob, transfer, meta, corner_points in baked:
+            mesh = _link_copy(temporary, ob).data
+            _write_packing(mesh, packs[ob.name], corner_points)
+            display.write_display_colours(mesh, transfer, totals[meta["order"]], corner_points)
+        if scene.camera is not None:
+            _link_copy(temporary, scene.camera)
+        _run_exporter(temporary, path)
+    top_order = max(orders)
+    _finish_file(path, scene.name, packs, {
+        "profile": profile.name, "convention": gltf_pack.CONVENTION, "order": top_order, "window": window,
+        "light_source": light_source, "active_light": getattr(scene, "prt_active_light", 0),
+        "lights": gltf_pack.light_extras(shining, top_order)})
+    return {"path": os.path.abspath(path), "profile": profile.name, "objects": list(packs),
+            "packs": packs, "light_source": light_source}
+
+
+def baked_objects(scene) -> list:
+    return [ob for ob in scene.objects if ob.type == "MESH" and ob.visible_get()
+            and storage.METADATA_KEY in ob.data]
+
+
+def _lights(scene):
+    """(core lights, window, what they are): the scene's SH lights, or the default light validation uses."""
+    shining = scene_lights(scene)
+    if shining:
+        return shining, scene.prt_display.window, "the scene's SH lights"
+    sun = core_lights.DEFAULT_SUN
+    direction = shading.direction_from_angles(sun["theta"], sun["phi"])
+    default = [core_lights.Sun(direction, sun["angular_radius"], (sun["irradiance"],) * 3),
+               core_lights.Sky((core_lights.DEFAULT_SKY,) * 3)]
+    return default, "hanning", f"the default light, {core_lights.DEFAULT_LIGHT}"
+
+
+@contextlib.contextmanager
+def _export_scene(scene):
+    """A temporary scene for the copies, removed with everything linked to it however the export ends."""
+    temporary = bpy.data.scenes.new(EXPORT_SCENE)
+    temporary.render.resolution_x, temporary.render.resolution_y = (scene.render.resolution_x,
+                                                                     scene.render.resolution_y)
+    temporary.render.pixel_aspect_x, temporary.render.pixel_aspect_y = (scene.render.pixel_aspect_x,
+                                                                        scene.render.pixel_aspect_y)
+    for name in DISPLAY_SETTINGS:
+        setattr(temporary.prt_display, name, getattr(scene.prt_display, name))
+    try:
+        yield temporary
+    finally:
+        for ob in list(temporary.collection.objects):
+            data = ob.data
+            bpy.data.objects.remove(ob)
+            if isinstance(data, bpy.types.Mesh):
+                bpy.data.meshes.remove(data)
+        bpy.data.scenes.remove(temporary)
+
+
+def _link_copy(temporary, ob):
+    """A copy of ob in the temporary scene at ob's world transform, with its own materials; a mesh gets its own
+    copy of the data without the stored bake."""
+    copy = ob.copy()
+    copy.name = COPY_PREFIX + ob.name
+    copy.animation_data_clear()
+    copy.constraints.clear()  # their targets are not in the temporary scene; the world transform is kept instead
+    copy.parent = None
+    copy.matrix_world = ob.matrix_world.copy()
+    temporary.collection.objects.link(copy)
+    if ob.type == "MESH":
+        copy.data = ob.data.copy()
+        copy.data.name = COPY_PREFIX + ob.name
+        storage.remove_transfer(copy.data)
+        if materials.ORIGINALS_KEY in copy:
+            for slot, material in zip(copy.material_slots, materials.original_materials(ob)):
+                slot.material = material
+            del copy[materials.ORIGINALS_KEY]
+    return copy
+
+
+def _write_packing(mesh, packed, corner_points):
+    """The packed rows per vertex (POINT) or face corner (CORNER, through each corner's point)."""
+    domain = "POINT" if corner_points is None else "CORNER"
+    rows = slice(None) if corner_points is None else corner_points
+    for name, values in packed.attributes.items():
+        mesh.attributes.new(name, "FLOAT_COLOR", domain)
+        mesh.attributes[name].data.foreach_set("color", np.ascontiguousarray(values[rows]).ravel())
+    if packed.texture is not None:
+        points = np.arange(len(mesh.vertices)) if corner_points is None else corner_points
+        mesh.attributes.new(gltf_pack.INDEX_ATTRIBUTE, "FLOAT", domain)
+        mesh.attributes[gltf_pack.INDEX_ATTRIBUTE].data.foreach_set("value", points.astype(np.float32))
+
+
+def _run_exporter(temporary, path):
+    """Blender's glTF exporter on the temporary scene alone; it leaves the window showing the scene it found, so the
+    user's is put back."""
+    if not hasattr(bpy.types, "EXPORT_SCENE_OT_gltf"):  # the user turned it off
+        import addon_utils  # Blender's, importable once bpy is
+        addon_utils.enable(EXPORTER_ADDON, default_set=False)  # for this session only, not the preferences
+    window = bpy.context.window
+    shown = window.scene if window else None
+    try:
+        if window:
+            window.scene = temporary
+        with bpy.context.temp_override(scene=temporary, view_layer=temporary.view_layers[0]):
+            bpy.ops.export_scene.gltf(
+                filepath=os.path.abspath(path), export_format="GLB", use_active_scene=True, export_attributes=True,
+                export_vertex_color="NAME", export_vertex_color_name=display.DISPLAY_ATTRIBUTE,
+                export_all_vertex_colors=False, export_cameras=True, export_lights=False, export_animations=False,
+                export_apply=False, export_yup=True, export_extras=False)
+    finally:
+        if window:
+            window.scene = shown
+
+
+def _finish_file(path, scene_name, packs, scene_extras):
+    """Adds extras, data textures and the original names to the exporter's GLB."""
+    with open(path, "rb") as file:
+        document, binary = glb.read(file.read())
+    for mesh in document.get("meshes", []):
+        packed = packs[mesh["name"].removeprefix(COPY_PREFIX)]
+        extras = packed.extras()
+        if packed.texture is not None:
+            extras["texture"]["bufferView"] = glb.append_buffer_view(document, binary, packed.texture.tobytes())
+        mesh["extras"] = {"prt": extras}
+    for item in document.get("nodes", []) + document.get("meshes", []):
+        item["name"] = item.get("name", "").removeprefix(COPY_PREFIX)
+    scene = document["scenes"][document.get("scene", 0)]
+    scene["name"], scene["extras"] = scene_name, {"prt": scene_extras}
+    with open(path, "wb") as file:
+        file.write(glb.write(document, binary))

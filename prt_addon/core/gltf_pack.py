@@ -1,0 +1,128 @@
+"""SH transfer for glTF: turned into glTF's Y-up frame and packed into vertex attributes as an export profile
+allows, or into a float data texture indexed by shading point, or refused with the limit named.
+
+Blender's glTF exporter writes positions and normals as (x, z, −y) but custom attributes as they are; SH
+coefficients are functions of direction, so they are rotated (an SH rotation), not copied. With the transfer and
+the light in one frame the shading Σ_k L_k T_k is the same number in either frame.
+"""
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import lights, lobes, rotation
+from .errors import InputError
+
+# glTF (x, y, z) = Blender (x, z, −y): the exporter's own axis conversion, a proper rotation (−90° about X).
+Z_UP_TO_Y_UP = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
+INDEX_ATTRIBUTE = "_PRT_INDEX"  # each glTF vertex's shading point: its row of the data texture
+TEXTURE_WIDTH = 4096  # texels per row of a data texture; WebGL 2 guarantees at least 2048, every GPU 4096
+CONVENTION = {
+    "basis": "real spherical harmonics, orthonormal, with the Condon-Shortley phase "
+             "(Y_1,-1 = -sqrt(3/4pi) y, Y_1,0 = sqrt(3/4pi) z, Y_1,1 = -sqrt(3/4pi) x)",
+    "index": "k = l(l+1) + m; order n holds bands l < n, n^2 coefficients",
+    "normalisation": "transfer holds 1/pi: outgoing radiance = albedo * sum_k L_k T_k, L the light's radiance SH",
+    "frame": "glTF world space, Y up: Blender's world coefficients rotated by (x, y, z) -> (x, z, -y)",
+    "packing": "per vertex, channel-major (all of channel 0's coefficients, then channel 1's ...), zero-padded to "
+               "a multiple of 4, four floats per VEC4 attribute or RGBA32F texel",
+}
+
+
+@dataclass(frozen=True)
+class Profile:
+    name: str
+    attribute_name: str  # format of the i-th VEC4 attribute's name
+    max_attributes: int | None  # VEC4 attributes the profile allows for transfer; None: no limit
+    texture_beyond: bool  # beyond the budget: a data texture (True) or a refusal (False)
+    limit: str  # what the budget is, for the refusal and the README
+
+
+PROFILES = {
+    "web": Profile("web", "_PRT_SH{}", 12, True, "WebGL 2 guarantees 16 vertex attributes: 12 VEC4s beside "
+                   "POSITION, NORMAL, TEXCOORD_0 and COLOR_0"),
+    "godot": Profile("godot", "_CUSTOM{}", 4, False, "Godot imports 4 custom VEC4 arrays (CUSTOM0-CUSTOM3), "
+                     "16 floats: order 4 grey or order 2 RGB"),
+    "generic": Profile("generic", "_PRT_SH{}", None, False, "none"),
+}
+
+
+@dataclass
+class Packed:
+    """One mesh's transfer as the profile packs it, per shading point (the Blender layer spreads it to vertices
+    or corners): VEC4 attributes, or a data texture and the point index attribute that reads it."""
+    attributes: dict  # glTF attribute name → (P, 4) float32
+    texture: np.ndarray | None  # (height, TEXTURE_WIDTH, 4) float32: texel point·vec4s + j holds VEC4 j
+    vec4s: int  # VEC4s per point
+    order: int
+    channels: int
+
+    def extras(self) -> dict:
+        layout = {"order": self.order, "channels": self.channels, "vec4s": self.vec4s}
+        if self.texture is None:
+            return {**layout, "layout": "attributes", "attributes": list(self.attributes)}
+        height, width = self.texture.shape[:2]
+        return {**layout, "layout": "texture", "index_attribute": INDEX_ATTRIBUTE,
+                "texture": {"width": width, "height": height, "format": "RGBA32F"}}
+
+
+def to_gltf_frame(coefficients: np.ndarray) -> np.ndarray:
+    """SH coefficients (..., n²) of a function of Blender's world directions → the same function in glTF's frame."""
+    return rotation.rotate(coefficients, Z_UP_TO_Y_UP)
+
+
+def direction_to_gltf(direction) -> list:
+    return (Z_UP_TO_Y_UP @ np.asarray(direction, dtype=np.float64)).tolist()
+
+
+def channel_major(transfer: np.ndarray) -> np.ndarray:
+    """(P, n²) grey or (P, C, n²) coloured → (P, C·n²), channel after channel."""
+    return transfer.reshape(len(transfer), -1)
+
+
+def pack(transfer: np.ndarray, profile: Profile, object_name: str) -> Packed:
+    """Transfer (P, n²) or (P, C, n²), already in glTF's frame, packed as `profile` allows."""
+    order = math.isqrt(transfer.shape[-1])
+    channels = 1 if transfer.ndim == 2 else transfer.shape[1]
+    flat = channel_major(np.asarray(transfer, dtype=np.float32))
+    vec4s = -(-flat.shape[1] // 4)
+    padded = np.zeros((len(flat), 4 * vec4s), dtype=np.float32)
+    padded[:, : flat.shape[1]] = flat
+    if profile.max_attributes is None or vec4s <= profile.max_attributes:
+        attributes = {profile.attribute_name.format(j): np.ascontiguousarray(padded[:, 4 * j: 4 * j + 4])
+                      for j in range(vec4s)}
+        return Packed(attributes, None, vec4s, order, channels)
+    if not profile.texture_beyond:
+        raise InputError(f"{object_name}: order {order} with {channels} channel(s) needs {vec4s} VEC4 attributes; "
+                         f"the {profile.name} profile allows {profile.max_attributes} ({profile.limit}). "
+                         f"Bake a lower order or use the web or generic profile")
+    return Packed({}, _data_texture(padded), vec4s, order, channels)
+
+
+def _data_texture(padded: np.ndarray) -> np.ndarray:
+    """(P, 4·vec4s) → (height, TEXTURE_WIDTH, 4): the texels of point p are p·vec4s .. p·vec4s + vec4s − 1."""
+    texels = padded.reshape(-1, 4)
+    height = max(1, -(-len(texels) // TEXTURE_WIDTH))
+    texture = np.zeros((height * TEXTURE_WIDTH, 4), dtype=np.float32)
+    texture[: len(texels)] = texels
+    return texture.reshape(height, TEXTURE_WIDTH, 4)
+
+
+def light_extras(scene_lights, order: int) -> list[dict]:
+    """The scene's SH lights for a viewer, in glTF's frame: a sun as its direction (and Blender's θ, φ, which a
+    viewer turns), disc radius, irradiance and zonal coefficients z_l (f_lm = sqrt(4π/(2l+1)) z_l Y_lm(d)); a sky
+    or an environment as its (3, n²) coefficients, colour and rotation applied."""
+    cache, described = lights.LightCache(), []
+    for light in scene_lights:
+        if isinstance(light, lights.Sun):
+            direction = np.asarray(light.direction, dtype=np.float64) / np.linalg.norm(light.direction)
+            described.append({
+                "kind": "sun", "direction": direction_to_gltf(direction),
+                "theta": math.acos(max(-1.0, min(1.0, direction[2]))), "phi": math.atan2(direction[1], direction[0]),
+                "angular_radius": light.angular_radius, "rgb": list(light.rgb),
+                "zonal": lobes.sun_disc_zonal(order, light.angular_radius).tolist()})
+        else:
+            kind = "sky" if isinstance(light, lights.Sky) else "environment"
+            placed = cache.totals([light], [order])[order]
+            described.append({"kind": kind, "rgb": list(light.rgb), "coefficients": to_gltf_frame(placed).tolist()})
+    return described
