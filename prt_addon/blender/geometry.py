@@ -120,17 +120,22 @@ def surface_from_object(ob, depsgraph, notes: list, for_storage: bool = True, al
     world_normals = directions_to_world(matrix, normals)
     usable = used & (np.linalg.norm(world_normals, axis=1) > 0)
     world_normals[~usable] = 0.0
-    inward = towards_faces @ matrix[:3, :3].T
-    inward -= np.einsum("ij,ij->i", inward, world_normals)[:, None] * world_normals  # tangent only
-    length = np.linalg.norm(inward, axis=1, keepdims=True)
-    inward = np.where(length > 1e-12 * np.linalg.norm(np.ptp(world_positions, axis=0)),
-                      inward / np.where(length > 0, length, 1.0), 0.0)
+    along_faces = towards_faces @ matrix[:3, :3].T
+    tangent = along_faces - np.einsum("ij,ij->i", along_faces, world_normals)[:, None] * world_normals
+    scale = np.linalg.norm(np.ptp(world_positions, axis=0))
+    inward, surface_step = (_unit_or_zero(step, 1e-12 * scale) for step in (tangent, along_faces))
     if not usable.all():
         notes.append(f"{ob.name!r}: {int((~usable).sum())} vertices are loose or only on zero-area faces; "
                      f"they get zero transfer")
     groups = corners.ray_groups(points.point_vertices, world_normals, len(vertex_normals)) if split else None
-    receiver = bake.Receiver(ob.name, world_positions, world_normals, bake.Receiver.key_for(ob.name), inward, groups)
+    receiver = bake.Receiver(ob.name, world_positions, world_normals, bake.Receiver.key_for(ob.name), inward, groups,
+                             surface_step)
     return Surface(receiver, triangles, colours, points.corner_points if split else None, points.split_vertices)
+
+
+def _unit_or_zero(vectors: np.ndarray, shortest: float) -> np.ndarray:
+    length = np.linalg.norm(vectors, axis=1, keepdims=True)
+    return np.where(length > shortest, vectors / np.where(length > 0, length, 1.0), 0.0)
 
 
 def _towards_faces(triangles: np.ndarray, positions: np.ndarray) -> np.ndarray:

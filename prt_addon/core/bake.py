@@ -47,12 +47,6 @@ CONVENTION_VERSION = 3
 # of both. Faces count as facing when their normals are at least this far from perpendicular.
 FACING_COSINE = -0.05
 ON_SURFACE = 0.01  # of the ray offset: how far from a surface a point still lies on it
-# How far behind a surface a point may be and still be in front of it, of the ray offset: the step into a point's own
-# faces is tangent to its normal, so a vertex resting on a floor with a normal leaning a few degrees off it (a
-# Weighted Normal box's bottom corners lean 0.6°) dips under the floor by about that much. A face of the point's own
-# fan that faces against it (a crease folded past 90°) has the step behind it by sin(dihedral angle) of a step, more
-# than this unless the fold closes to within 3° of flat: such faces never count.
-IN_FRONT = 0.05
 
 
 @dataclass
@@ -100,6 +94,9 @@ class Receiver:
     # (V,) rows with the same label share their rays (core.corners.ray_groups: the corner points of one vertex
     # whose hemispheres overlap); None: every row casts its own.
     ray_groups: np.ndarray | None = None
+    # (V, 3) unit steps from each vertex into its faces along the surface itself (not tangent to the normal), zero
+    # where there is none: where a point lies against another surface is judged a step along them. None: `inward`.
+    surface_step: np.ndarray | None = None
 
     @staticmethod
     def key_for(name: str) -> int:
@@ -200,19 +197,19 @@ class RayCaster:
         per_ray_origins = chain.from_iterable(repeat(origin, k) for origin in map(tuple, origins.tolist()))
         return map(self.tree.ray_cast, per_ray_origins, zip(xs, ys, zs), repeat(self.max_distance))
 
-    def touched_surfaces(self, surface, normals: np.ndarray, inward: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def touched_surfaces(self, surface, normals: np.ndarray, steps: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(normals (c, 3), heights (c,)): of the occluder face within the ray offset of each point that faces it
         most, with the point on its front side, its normal and the point's height above it; zero normal where
         there is none. The points are tested a little inside their own faces, at `surface` (c, 3) + offset ·
-        `inward`: their own and adjacent faces face the same way or lie behind them (a crease, a knife edge) and
-        never count. Only points with a facing face within two offsets of their surface position are tested
+        `steps` (along the faces: a step tangent to a leaning normal would dip under a floor the vertex rests on):
+        their own and adjacent faces face the same way or lie behind them (a crease, a knife edge) and never count. Only points with a facing face within two offsets of their surface position are tested
         one by one: the corner points of one vertex share that first search."""
         touched, heights = np.zeros_like(normals), np.zeros(len(surface))
         for row in self._may_touch(surface, normals):
-            point, normal = surface[row] + self.offset * inward[row], normals[row]
+            point, normal = surface[row] + self.offset * steps[row], normals[row]
             found = [(face_normal.dot(normal), face_normal, np.dot(point - np.asarray(nearest), face_normal))
                      for nearest, face_normal, _, _ in self.tree.find_nearest_range(tuple(point), self.offset)]
-            facing = [face for face in found if face[0] < FACING_COSINE and face[2] > -IN_FRONT * self.offset]
+            facing = [face for face in found if face[0] < FACING_COSINE and face[2] > -ON_SURFACE * self.offset]
             if facing:
                 _, touched[row], heights[row] = min(facing, key=itemgetter(0))
         return touched, heights
@@ -240,9 +237,11 @@ class RayCaster:
         return interreflect.barycentric(points, corners), np.einsum("ij,ij->i", normals, directions) < 0
 
 
-def shadowed_chunk(caster: RayCaster, positions, normals, inward, keys, settings: BakeSettings, labels=None):
+def shadowed_chunk(caster: RayCaster, positions, normals, inward, keys, settings: BakeSettings, labels=None,
+                   surface_steps=None):
     """Generator: bakes one chunk, yielding the rays cast after each round; returns a ChunkResult. Rows with
-    the same `labels` entry share their rays (None: each row casts its own)."""
+    the same `labels` entry share their rays (None: each row casts its own); contact is judged a step along
+    `surface_steps` (None: `inward`)."""
     order, replicates = settings.order, settings.replicates
     positions = positions - caster.center
     count = len(positions)
@@ -250,7 +249,8 @@ def shadowed_chunk(caster: RayCaster, positions, normals, inward, keys, settings
     has_surface = np.abs(normals).sum(-1) > 0
     # Contact is tested a little inside the point's own faces, so that a surface merely touching the vertex does
     # not count; it overrides the hull test, which a coplanar surface below the point cannot fail.
-    touched, heights = caster.touched_surfaces(positions, normals, inward)
+    steps = inward if surface_steps is None else surface_steps
+    touched, heights = caster.touched_surfaces(positions, normals, steps)
     facing = np.einsum("ij,ij->i", touched, normals) < 0
     contact = has_surface & facing & (heights <= ON_SURFACE * caster.offset)
     skipped = has_surface & (provably_unoccluded(positions, normals, caster.hull, caster.offset) | contact)
@@ -259,10 +259,11 @@ def shadowed_chunk(caster: RayCaster, positions, normals, inward, keys, settings
     tangents, bitangents = sampling.orthonormal_basis(np.where(has_surface[:, None], normals, [0.0, 0.0, 1.0]))
     frames = np.stack([tangents, bitangents, normals], axis=1)
     # A point touching a surface at an angle starts its rays in front of both (along the bisector of the two
-    # normals), so rays that cross that surface are blocked there and the others leave as from its own face.
+    # normals, a step along its faces), so rays that cross that surface are blocked there and the others leave as
+    # from its own face.
     lifted = normals + touched
     lifted /= np.maximum(np.linalg.norm(lifted, axis=1, keepdims=True), 1e-12)
-    origins = positions + caster.offset * (np.where(facing[:, None], lifted, normals) + inward)
+    origins = positions + caster.offset * np.where(facing[:, None], lifted + steps, normals + inward)
     if labels is not None:  # a point touching a surface at an angle needs its own lifted origin: it casts alone
         labels = np.where(facing, -1 - np.arange(count), labels)
     sets = ray_sets(labels, np.flatnonzero(has_surface & ~skipped))
@@ -518,4 +519,6 @@ def bake_chunk(caster, receiver: Receiver, rows: np.ndarray, settings: BakeSetti
     keys = vertex_keys(receiver, rows)
     inward = np.zeros_like(normals) if receiver.inward is None else receiver.inward[rows]
     labels = None if receiver.ray_groups is None else receiver.ray_groups[rows]
-    return (yield from shadowed_chunk(caster, receiver.positions[rows], normals, inward, keys, settings, labels))
+    steps = None if receiver.surface_step is None else receiver.surface_step[rows]
+    return (yield from shadowed_chunk(caster, receiver.positions[rows], normals, inward, keys, settings, labels,
+                                      steps))

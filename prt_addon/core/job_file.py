@@ -10,6 +10,8 @@ import numpy as np
 
 from . import bake, interreflect
 
+OPTIONAL_RECEIVER_ARRAYS = ("inward", "ray_groups", "surface_step")  # bake.Receiver's, in their order
+
 
 def worker_process_command(python_prefix, job_file, out_file, chunk_indices):
     """`python_prefix` runs a Python snippet with mathutils importable: [python, '-c'] with the bpy module,
@@ -33,7 +35,7 @@ def save_job(path, receivers, occluders, settings: bake.BakeSettings):
     for index, receiver in enumerate(receivers):
         arrays[f"positions_{index}"] = receiver.positions
         arrays[f"normals_{index}"] = receiver.normals
-        for name in ("inward", "ray_groups"):
+        for name in OPTIONAL_RECEIVER_ARRAYS:
             if getattr(receiver, name) is not None:
                 arrays[f"{name}_{index}"] = getattr(receiver, name)
     meta = {"settings": settings.__dict__, "receivers": [[r.name, r.key] for r in receivers],
@@ -49,7 +51,7 @@ def load_job(path):
                                    meta["solved_vertices"])
         receivers = [bake.Receiver(name, data[f"positions_{i}"], data[f"normals_{i}"], key,
                                    *(data[f"{part}_{i}"] if f"{part}_{i}" in data else None
-                                     for part in ("inward", "ray_groups")))
+                                     for part in OPTIONAL_RECEIVER_ARRAYS))
                      for i, (name, key) in enumerate(meta["receivers"])]
     return receivers, occluders, bake.BakeSettings(**meta["settings"])
 
