@@ -77,7 +77,8 @@ class BakeReport:
 class SceneBake(WrappingJob):
     """Gathers receivers and occluders, runs a TransferJob, then stores everything at once (its outcome)."""
 
-    def __init__(self, context, settings: bake.BakeSettings, object_names=None, workers: int = 1):
+    def __init__(self, context, settings: bake.BakeSettings, object_names=None, workers: int = 1, shard=None):
+        """`shard` (K, N): the job bakes only farm shard K's chunks, for a part file (blender.farm)."""
         problems = settings.problems()
         if problems:
             raise InputError("; ".join(problems))
@@ -117,7 +118,8 @@ class SceneBake(WrappingJob):
         solved = self.surfaces.all
         self.job = job.TransferJob([surface.receiver for surface in solved], occluders, settings, workers,
                                    worker_launch(),
-                                   albedo=_albedo_channels([s.albedo for s in solved]) if bouncing else None)
+                                   albedo=_albedo_channels([s.albedo for s in solved]) if bouncing else None,
+                                   shard=shard)
         self.summary = None
 
     def _bouncing_surfaces(self, context, depsgraph, receiver_names):
