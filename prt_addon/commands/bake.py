@@ -4,7 +4,7 @@ import argparse
 
 import bpy
 
-from ..blender.farm import bake_shard
+from ..blender.farm import bake_shard, merge_parts
 from ..blender.fingerprint import stale_line, stale_receivers
 from ..blender.scene_bake import SceneBake
 from ..core import settings as spec
@@ -80,7 +80,8 @@ def run(args, in_blender: bool) -> int:
         if not receivers:
             return 0
     if args.dask:
-        scene_bake = farm_dask.bake_on_dask(args.dask, settings, receivers, log)
+        with farm_dask.parts_baked_on_dask(args.dask, bpy.data.filepath, settings, receivers, log) as parts:
+            scene_bake = merge_parts(bpy.context, parts, log=log)
         warn(scene_bake.problems + scene_bake.notes)
     else:
         scene_bake = SceneBake(bpy.context, settings, receivers, workers=args.workers)

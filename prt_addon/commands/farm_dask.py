@@ -1,10 +1,11 @@
 """`prt bake FILE --dask SCHEDULER` (or `--dask local:N`): one shard per worker thread of a Dask cluster, each a
 `python -m prt_addon bake FILE --shard K/N` process on its worker (a fresh Blender per shard, as a farm task runs
-it; the bpy module is not thread-safe), its part file sent back, then merged here.
+it; the bpy module is not thread-safe), its part file sent back to be merged here.
 
 Dask (the `distributed` package) is a pipeline dependency: imported only on this path, so the add-on in Blender
 needs neither. The workers run the bpy module's Python with this package importable, and read FILE at the same
-path as this process (a shared folder, as on any farm).
+path as this process (a shared folder, as on any farm). The workers import this module to run its tasks: it
+imports neither bpy (a worker's path may find Blender's scripts' `bpy` package first) nor the Blender layer.
 """
 
 from contextlib import contextmanager
@@ -13,9 +14,6 @@ import subprocess
 import sys
 import tempfile
 
-import bpy
-
-from ..blender.farm import merge_parts
 from ..core import settings as spec
 from ..core.errors import InputError
 
@@ -24,16 +22,16 @@ PACKAGE_PARENT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath
 WORKERS_TIMEOUT_S = 60
 
 
-def bake_on_dask(scheduler: str, settings, receivers, log):
-    """Bakes the open file's shards on the cluster and merges them into the scene (stored, not saved); returns the
-    merged SceneBake."""
-    if not bpy.data.filepath or bpy.data.is_dirty:
-        raise InputError("--dask bakes the file as saved: give a .blend file without unsaved changes")
+@contextmanager
+def parts_baked_on_dask(scheduler: str, blend_file: str, settings, receivers, log):
+    """Bakes the saved file's shards on the cluster; yields their part files, in a folder removed afterwards."""
+    if not blend_file:
+        raise InputError("--dask bakes a saved .blend file: give one")
     arguments = bake_arguments(settings, receivers)
     with tempfile.TemporaryDirectory(prefix="prt_dask_") as folder, _client(scheduler) as client:
         shards = sum(client.nthreads().values())
         log(f"PRT dask: {shards} shards on {scheduler}")
-        futures = [client.submit(run_shard, bpy.data.filepath, (shard, shards), arguments, pure=False, retries=1)
+        futures = [client.submit(run_shard, blend_file, (shard, shards), arguments, pure=False, retries=1)
                    for shard in range(1, shards + 1)]
         parts = []
         for shard, future in enumerate(futures, start=1):
@@ -41,7 +39,7 @@ def bake_on_dask(scheduler: str, settings, receivers, log):
             with open(parts[-1], "wb") as out:
                 out.write(future.result())
             log(f"PRT dask: shard {shard}/{shards} done")
-        return merge_parts(bpy.context, parts, log=log)
+        yield parts
 
 
 def bake_arguments(settings, receivers) -> list[str]:
