@@ -6,5 +6,4 @@ import bpy  # noqa: F401  (must come before mathutils, which the core uses)
 
 from .commands.cli import main
 
-if __name__ == "__main__":  # not when a spawned process (Dask's LocalCluster workers) imports it as __mp_main__
-    sys.exit(main(sys.argv[1:]))
+sys.exit(main(sys.argv[1:]))

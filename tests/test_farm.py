@@ -22,7 +22,9 @@ from test_bake_blender import box, grid
 from test_interreflect_blender import coloured, wall
 from test_stale import stored
 from prt_addon.blender import storage
+from prt_addon.blender.scene_bake import SceneBake
 from prt_addon.core import settings as spec
+from prt_addon.core.bake import BakeSettings
 from prt_addon.core.workers import shard_chunks
 
 SETTINGS = ("--order", "3", "--samples", "16")
@@ -129,6 +131,21 @@ def test_shards_split_the_chunks_into_interleaved_shares_that_cover_each_once():
             taken = [shard_chunks(chunks, shard, shards) for shard in range(1, shards + 1)]
             assert sorted(sum(taken, [])) == list(range(chunks))
             assert all(index % shards == shard for shard, share in enumerate(taken) for index in share)
+
+
+def test_a_shard_with_forked_workers_bakes_the_same_chunks_and_bits_as_with_one_process(empty_scene, scenes):
+    bpy.ops.wm.open_mainfile(filepath=str(scenes["room"]), load_ui=False)
+    baked_shards = []
+    for workers in (1, 2):
+        scene_bake = SceneBake(bpy.context, BakeSettings(order=3, samples=16), workers=workers, shard=(1, 2))
+        scene_bake.job.min_rays_for_workers = 0  # workers even for this small scene
+        scene_bake.job.run()
+        baked_shards.append(scene_bake.job.shard_results)
+    one, forked = baked_shards
+    assert sorted(one) == sorted(forked) == shard_chunks(len(scene_bake.job.chunks), 1, 2)
+    for index, result in one.items():
+        for name in ("transfer", "std_error", "rays", "skipped"):
+            assert np.array_equal(getattr(result, name), getattr(forked[index], name)), name
 
 
 @pytest.mark.parametrize("mode, objects", BAKES, ids=[mode for mode, _ in BAKES])
@@ -357,3 +374,4 @@ def test_dask_scheduler_with_two_worker_processes_bakes_bit_identical_to_one_bak
     finally:
         for process in reversed(processes):
             stop(process)
+
