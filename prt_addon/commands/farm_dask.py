@@ -69,8 +69,9 @@ def run_shard(blend_file: str, shard: tuple[int, int], arguments: list[str]) -> 
 
 @contextmanager
 def _client(scheduler: str):
-    """A Dask client of the scheduler at this address, or of a LocalCluster for local:N (one thread per worker
-    process: each runs one shard at a time), closed afterwards."""
+    """A Dask client of the scheduler at this address, or of a LocalCluster for local:N, closed afterwards. The
+    LocalCluster's N workers are threads of this process, one task each at a time: every task waits on its shard's
+    own process, which is the parallelism, so worker processes would add only their start-up (seconds)."""
     try:
         from dask.distributed import Client, LocalCluster
     except ImportError:
@@ -82,7 +83,7 @@ def _client(scheduler: str):
             workers = 0
         if workers < 1:
             raise InputError(f"--dask local:N needs N ≥ 1 workers, not {scheduler!r}")
-        with LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None) as cluster, \
+        with LocalCluster(n_workers=workers, threads_per_worker=1, processes=False, dashboard_address=None) as cluster, \
                 Client(cluster) as client:
             yield client
         return
