@@ -125,14 +125,6 @@ def part_arrays(path) -> dict:
 
 # -- shards and merge ----------------------------------------------------------------------------------------------
 
-def test_shards_split_the_chunks_into_interleaved_shares_that_cover_each_once():
-    for chunks in range(14):
-        for shards in range(1, 6):
-            taken = [shard_chunks(chunks, shard, shards) for shard in range(1, shards + 1)]
-            assert sorted(sum(taken, [])) == list(range(chunks))
-            assert all(index % shards == shard for shard, share in enumerate(taken) for index in share)
-
-
 def test_a_shard_with_forked_workers_bakes_the_same_chunks_and_bits_as_with_one_process(empty_scene, scenes):
     bpy.ops.wm.open_mainfile(filepath=str(scenes["room"]), load_ui=False)
     baked_shards = []
