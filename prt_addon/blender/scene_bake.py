@@ -80,7 +80,8 @@ class BakeReport:
 class SceneBake(WrappingJob):
     """Gathers receivers and occluders, runs a TransferJob, then stores everything at once (its outcome)."""
 
-    def __init__(self, context, settings: bake.BakeSettings, object_names=None, workers: int = 1):
+    def __init__(self, context, settings: bake.BakeSettings, object_names=None, workers: int = 1, shard=None):
+        """`shard` (K, N): the job bakes only farm shard K's chunks, for a part file (blender.farm)."""
         problems = settings.problems()
         if problems:
             raise InputError("; ".join(problems))
@@ -120,7 +121,8 @@ class SceneBake(WrappingJob):
         solved = self.surfaces.all
         self.job = job.TransferJob([surface.receiver for surface in solved], occluders, settings,
                                    spec.worker_count(workers), worker_launch(),
-                                   albedo=_albedo_channels([s.albedo for s in solved]) if bouncing else None)
+                                   albedo=_albedo_channels([s.albedo for s in solved]) if bouncing else None,
+                                   shard=shard)
         self.probes, self.probe_job = self._probe_job(occluders, spec.worker_count(workers))
         self.sequence = JobSequence([self.job, self.probe_job],
                                     [self.job.total_vertices, max(1, self.probe_job.total_vertices)], "PRT bake")

@@ -1,17 +1,19 @@
 """`prt bake`: bake and save, with progress lines, the summary line and an optional JSON report."""
 
 import argparse
-import os
 
 import bpy
 
 from ..blender import checks as scene_checks
+from ..blender.farm import bake_shard, merge_parts
 from ..blender.fingerprint import stale_line, stale_receivers
 from ..blender.scene_bake import SceneBake
 from ..core import checks, presets, settings as spec
 from ..core.bake import BakeSettings
-from . import light_options
-from .common import log, names, open_file, write_json
+from ..core.errors import InputError
+from ..core.shards import shard_of
+from . import farm_dask, light_options
+from .common import check_writable, log, names, open_file, save_bake, warn
 
 
 def add_parser(commands):
@@ -28,6 +30,13 @@ def add_parser(commands):
                         help="rebake only the receivers whose geometry, transform, occluders, materials or settings "
                              "changed since their bake (or that have none); nothing is written when none did")
     light_options.add_arguments(parser)
+    farm = parser.add_argument_group("farm", "one bake spread over a render farm (README: Baking on a farm)")
+    farm.add_argument("--shard", metavar="K/N", help="bake only shard K of N (K from 1 to N) into the part file "
+                      "--out, saving nothing else; `prt merge` makes the bake from all N parts")
+    farm.add_argument("--out", metavar="PART.npz", help="the shard's part file (written atomically)")
+    farm.add_argument("--dask", metavar="SCHEDULER", help="bake one shard per worker thread of this Dask scheduler "
+                      "(an address, or local:N for a LocalCluster of N workers) and merge them here; needs the "
+                      "distributed package")
 
 
 def add_setting(parser, setting: spec.Setting):
@@ -67,28 +76,51 @@ def settings_from(args) -> BakeSettings:
 
 def run(args, in_blender: bool) -> int:
     settings = settings_from(args)
+    shard = _farm_options(args)
+    for path in (args.out, args.report):
+        if path:
+            check_writable(path)
     open_file(args.file, required=not in_blender)
-    output = args.output or bpy.data.filepath
-    found = [scene_checks.output_check(output, required=True)]
+    workers = getattr(args, "workers", spec.WORKERS.default)
+    receivers = names(args.objects)
+    if shard:
+        info = bake_shard(bpy.context, settings, receivers, shard, args.out, workers, log=log)
+        log(f"PRT shard {args.shard}: {info.rays} rays in {info.time_s:.2f} s; wrote {args.out}")
+        return 0
+    found = [scene_checks.output_check(args.output or bpy.data.filepath, required=True)]
     checks.stop_on_errors(found)  # before the scene is gathered: a wrong --output fails at once
     light_options.add_lights(bpy.context.scene, args)
-    receivers = names(args.objects)
     if args.stale_only:
         changed = stale_receivers(bpy.context, settings, receivers)
         log(stale_line(changed))
         receivers = [name for name, words in changed.items() if words]
         if not receivers:
             return 0
-    workers = getattr(args, "workers", spec.WORKERS.default)
-    scene_bake = SceneBake(bpy.context, settings, receivers, workers=workers)
-    found += scene_checks.scene_checks(bpy.context, scene_bake)
-    log("prt: checks before any ray:")
-    for check in found:
-        log(f"prt:   {check.line()}")
-    checks.stop_on_errors(found)
-    summary = scene_bake.run(log=log)
-    log(summary.line())
-    bpy.ops.wm.save_as_mainfile(filepath=os.path.abspath(output))
-    if args.report:
-        write_json(args.report, scene_bake.report().as_dict())
+    if args.dask:
+        with farm_dask.parts_baked_on_dask(args.dask, bpy.data.filepath, settings, receivers, log) as parts:
+            scene_bake = merge_parts(bpy.context, parts, log=log)
+        warn(scene_bake.problems + scene_bake.notes)
+    else:
+        scene_bake = SceneBake(bpy.context, settings, receivers, workers=workers)
+        found += scene_checks.scene_checks(bpy.context, scene_bake)
+        log("prt: checks before any ray:")
+        for check in found:
+            log(f"prt:   {check.line()}")
+        checks.stop_on_errors(found)
+        scene_bake.run(log=log)
+    log(scene_bake.summary.line())
+    save_bake(scene_bake, args.output, args.report)
     return 0
+
+
+def _farm_options(args) -> tuple[int, int] | None:
+    """Checks how the farm options combine; the shard (K, N) to bake, or None."""
+    if (args.shard is None) != (args.out is None):
+        raise InputError("--shard K/N and --out PART.npz go together")
+    if args.shard is None:
+        return None
+    others = [option for option, given in (("--stale-only", args.stale_only), ("--dask", args.dask),
+                                           ("--output", args.output), ("--report", args.report)) if given]
+    if others:
+        raise InputError(f"a shard only writes its part file (--out): {', '.join(others)} does not apply")
+    return shard_of(args.shard)

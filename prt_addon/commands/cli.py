@@ -8,11 +8,12 @@ import sys
 import bpy
 
 from ..core.errors import InputError
-from . import bake, demo, export, relight, validate, view
+from . import bake, demo, export, merge, relight, validate, view
 from .common import addon_registered
 
 COMMAND_ID = "prt"
-COMMANDS = {module.__name__.rsplit(".", 1)[-1]: module for module in (bake, export, relight, validate, demo, view)}
+COMMANDS = {module.__name__.rsplit(".", 1)[-1]: module
+            for module in (bake, merge, export, relight, validate, demo, view)}
 _cli_handle = None
 
 

@@ -52,6 +52,27 @@ def whole_number(option: str, at_least: int):
     return parse
 
 
+def check_writable(path):
+    """Refuses, before any work is spent, a path that cannot be written: its nearest existing folder must be a
+    writable folder (the folders below it are created when writing)."""
+    folder = os.path.dirname(os.path.abspath(path))
+    while not os.path.exists(folder):
+        folder = os.path.dirname(folder)
+    if os.path.isdir(path) or not os.path.isdir(folder) or not os.access(folder, os.W_OK):
+        raise InputError(f"cannot write {path}: {folder} is not a writable folder")
+
+
+def save_bake(scene_bake, output, report):
+    """Saves the baked scene (over the opened file without `output`) and its JSON report."""
+    output = output or bpy.data.filepath
+    if not output:
+        raise InputError("the scene has no file; give --output")
+    os.makedirs(os.path.dirname(os.path.abspath(output)), exist_ok=True)
+    bpy.ops.wm.save_as_mainfile(filepath=os.path.abspath(output))
+    if report:
+        write_json(report, scene_bake.report().as_dict())
+
+
 def names(text):
     return [name.strip() for name in text.split(",")] if text else None
 

@@ -19,7 +19,7 @@ from . import bake, interreflect, job_file
 from .progress import Job, Progress
 from .statistics import rms
 from .workers import (FORK, FORK_MIN_RAYS, TYPICAL_RAYS_PER_S, WORKER_MIN_RAYS, WORKER_START_S, ChunkQueue,
-                      ForkedWorker, SpawnedWorker, chunk_owners, read_lines)
+                      ForkedWorker, SpawnedWorker, chunk_owners, chunks_of, read_lines, shard_chunks)
 
 
 @dataclass
@@ -83,11 +83,13 @@ class TransferJob(Job):
     """Bakes every receiver. Call step() until it returns True, or run() to do it all at once."""
 
     def __init__(self, receivers, occluders, settings: bake.BakeSettings, workers: int = 1,
-                 worker_command=None, albedo=None, owners=None):
+                 worker_command=None, albedo=None, owners=None, shard=None):
         """Interreflected bakes need `albedo`, one (V, C) array per receiver, and occluders whose first
         `solved_vertices` are the receivers' vertices in order (so a hit triangle's corners are solved vertices).
         `owners` fixes which process bakes each chunk when workers run (0: this one, k: worker k); by default
-        spawned workers get chunk_owners' split and forked ones share a queue with this process."""
+        spawned workers get chunk_owners' split and forked ones share a queue with this process.
+        `shard` (K, N) bakes only farm shard K's chunks (workers.shard_chunks) and keeps their results for its part
+        file (shard_results); interreflections are bounced where the parts are merged (take_parts)."""
         self.receivers = receivers
         self.occluders = occluders
         self.settings = settings
@@ -97,11 +99,15 @@ class TransferJob(Job):
         self.worker_start_s = WORKER_START_S  # spawned workers: this process takes the share they start late
         self.owners = owners
         self.chunks = bake.chunk_rows(receivers)
+        self.shard = shard
+        self.baked_chunks = range(len(self.chunks)) if shard is None else shard_chunks(len(self.chunks), *shard)
+        self.shard_results = None if shard is None else {}
         self.total_vertices = sum(len(r.positions) for r in receivers)
         self._vertex_offsets = np.cumsum([0] + [len(r.positions) for r in receivers])
         if settings.mode == "interreflected" and occluders.solved_vertices != self.total_vertices:
             raise ValueError(f"interreflection needs occluders that begin with the {self.total_vertices} solved "
                              f"vertices, not {occluders.solved_vertices}")
+        self.baked_vertices = sum(len(self.chunks[index][1]) for index in self.baked_chunks)
         self.done_vertices = 0
         self.rays = 0
         self.progress = Progress("PRT bake")
@@ -130,17 +136,17 @@ class TransferJob(Job):
         while time.perf_counter() < deadline:
             if next(self._runner, StopIteration) is StopIteration:
                 self.phase_times["rays_s"] = self.progress.elapsed
-                if self.settings.mode == "interreflected":
+                if self.settings.mode == "interreflected" and self.shard is None:
                     self._bounce()
                 self.finished = True
                 break
-        self.progress.fraction = self.done_vertices / max(1, self.total_vertices)
+        self.progress.fraction = self.done_vertices / max(1, self.baked_vertices)
         return self.finished
 
     def uses_workers(self) -> bool:
         """Whether worker processes bake beside this one: only for enough rays to repay starting them."""
-        return (self.workers > 1 and self.settings.mode != "unshadowed" and len(self.chunks) >= self.workers
-                and self.total_vertices * self.settings.samples >= self.min_rays_for_workers)
+        return (self.workers > 1 and self.settings.mode != "unshadowed" and len(self.baked_chunks) >= self.workers
+                and self.baked_vertices * self.settings.samples >= self.min_rays_for_workers)
 
     def outcome(self) -> list:
         return self.results()
@@ -156,6 +162,8 @@ class TransferJob(Job):
         self._std_error[receiver_index][rows] = result.std_error
         self._rays[receiver_index][rows] = result.rays
         self._skipped[receiver_index][rows] = result.skipped
+        if self.shard_results is not None:
+            self.shard_results[chunk_index] = result
         if result.records is not None:
             solved = self._vertex_offsets[receiver_index] + rows[result.records.vertex]
             self.records.append(interreflect.HitRecords(solved, result.records.triangle, result.records.barycentric,
@@ -164,8 +172,20 @@ class TransferJob(Job):
     def _run_here(self):
         caster = bake.RayCaster(self.occluders) if self.settings.mode != "unshadowed" else None
         yield
-        for chunk_index in range(len(self.chunks)):
+        for chunk_index in self.baked_chunks:
             yield from self._bake_chunk_here(caster, chunk_index)
+
+    def take_parts(self, chunk_results, shards_time_s: float):
+        """Merges farm shards: every chunk's result comes from their parts instead of being baked here (their bakes
+        took `shards_time_s` in all); step() then bounces interreflections as after a bake."""
+        self.phase_times["shards_s"] = shards_time_s
+        self._runner = self._store_parts(chunk_results)
+
+    def _store_parts(self, chunk_results):
+        for chunk_index, result in chunk_results:
+            self._store(chunk_index, result)
+            self.done_vertices += len(self.chunks[chunk_index][1])
+            yield
 
     def _bake_chunk_here(self, caster, chunk_index):
         receiver_index, rows = self.chunks[chunk_index]
@@ -191,13 +211,13 @@ class TransferJob(Job):
                 saved_job = os.path.join(folder, "job.npz")
                 job_file.save_job(saved_job, self.receivers, self.occluders, self.settings)
             owners = self._chunk_owners(forking)
-            shared_queue = ChunkQueue(range(len(self.chunks))) if owners is None else None
-            mine = shared_queue if owners is None else _chunks_of(owners, 0)
+            shared_queue = ChunkQueue(self.baked_chunks) if owners is None else None
+            mine = shared_queue if owners is None else chunks_of(owners, 0)
             workers, lines = [], queue.Queue()
             try:
                 for worker in range(1, self.workers):
                     out_file = os.path.join(folder, f"result_{worker}.npz")
-                    theirs = shared_queue if owners is None else _chunks_of(owners, worker)
+                    theirs = shared_queue if owners is None else chunks_of(owners, worker)
                     if owners is not None and not theirs:
                         continue  # a worker with no chunks is not worth starting
                     if forking:
@@ -239,11 +259,15 @@ class TransferJob(Job):
         None when forked workers share a queue with this process."""
         if self.owners is not None or forking:
             return self.owners
-        return chunk_owners(len(self.chunks), self.workers, self._estimated_seconds(), self.worker_start_s)
+        split = chunk_owners(len(self.baked_chunks), self.workers, self._estimated_seconds(), self.worker_start_s)
+        owners = [None] * len(self.chunks)  # a chunk another farm shard bakes has no owner here
+        for chunk_index, owner in zip(self.baked_chunks, split):
+            owners[chunk_index] = owner
+        return owners
 
     def _estimated_seconds(self) -> float:
         """One process's time for the whole job, from the first round's rays at a typical rate."""
-        return self.total_vertices * self.settings.samples / TYPICAL_RAYS_PER_S
+        return self.baked_vertices * self.settings.samples / TYPICAL_RAYS_PER_S
 
     def _take_progress(self, lines: queue.Queue, wait: float) -> int:
         """Counts the workers' progress lines; returns how many workers finished."""
@@ -296,7 +320,7 @@ class TransferJob(Job):
         return out
 
     def summary(self, results: list[ReceiverResult]) -> Summary:
-        elapsed = self.progress.elapsed
+        elapsed = self.progress.elapsed + self.phase_times.get("shards_s", 0.0)
         rel = np.concatenate([r.rel_error for r in results]) if results else np.zeros(0)
         rays = int(sum(int(r.rays.sum()) for r in results))
         per_object = {
@@ -324,6 +348,3 @@ class TransferJob(Job):
             bounces_converged=self.bounce_report.converged if self.bounce_report else True,
             albedo_clamped=bool(self.bounce_report and self.bounce_report.albedo_clamped))
 
-
-def _chunks_of(owners: list[int], process: int) -> list[int]:
-    return [index for index, owner in enumerate(owners) if owner == process]

@@ -56,6 +56,20 @@ def load_job(path):
     return receivers, occluders, bake.BakeSettings(**meta["settings"])
 
 
+def save_results(out_file, results, **extra):
+    """Saves (chunk index, ChunkResult) pairs, and `extra` arrays, where load_results reads them: a path, or an
+    open binary file (np.savez adds no '.npz' to it)."""
+    arrays = {}
+    for slot, (_, result) in enumerate(results):
+        for name in ("transfer", "std_error", "rays", "skipped"):
+            arrays[f"{name}_{slot}"] = getattr(result, name)
+        if result.records is not None:
+            for name in interreflect.HitRecords.FIELDS:
+                arrays[f"records_{name}_{slot}"] = getattr(result.records, name)
+    chunks = np.array([chunk_index for chunk_index, _ in results], dtype=np.int64)
+    np.savez(out_file, chunks=chunks, **arrays, **extra)
+
+
 def load_results(path) -> list[tuple[int, bake.ChunkResult]]:
     """(chunk index, result) for every chunk a worker baked."""
     with np.load(path) as data:
@@ -74,8 +88,8 @@ def bake_chunks(caster, receivers, settings, chunk_indices, out_file, stream):
     """A worker's work: bakes the chunks it is given (a list, or a shared queue it takes them from) with a
     progress line on `stream` after each, then saves the results and which chunks they are."""
     chunks = bake.chunk_rows(receivers)
-    arrays, done = {}, []
-    for slot, chunk_index in enumerate(chunk_indices):
+    results = []
+    for chunk_index in chunk_indices:
         receiver_index, rows = chunks[chunk_index]
         work = bake.bake_chunk(caster, receivers[receiver_index], rows, settings)
         rays = 0
@@ -83,16 +97,10 @@ def bake_chunks(caster, receivers, settings, chunk_indices, out_file, stream):
             try:
                 rays += next(work)
             except StopIteration as finished:
-                result = finished.value
+                results.append((chunk_index, finished.value))
                 break
-        for name in ("transfer", "std_error", "rays", "skipped"):
-            arrays[f"{name}_{slot}"] = getattr(result, name)
-        if result.records is not None:
-            for name in interreflect.HitRecords.FIELDS:
-                arrays[f"records_{name}_{slot}"] = getattr(result.records, name)
-        done.append(chunk_index)
         print(f"PRT-PROGRESS {len(rows)} {rays}", file=stream, flush=True)
-    np.savez(out_file, chunks=np.array(done, dtype=np.int64), **arrays)
+    save_results(out_file, results)
 
 
 def worker_main(job_file, out_file, chunk_indices):

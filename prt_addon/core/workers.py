@@ -38,6 +38,17 @@ def chunk_owners(chunks: int, processes: int, estimated_s: float, start_s: float
     return owners
 
 
+def chunks_of(owners: list, process: int) -> list[int]:
+    """The chunks `process` owns."""
+    return [index for index, owner in enumerate(owners) if owner == process]
+
+
+def shard_chunks(chunks: int, shard: int, shards: int) -> list[int]:
+    """The chunks farm shard K of N bakes (K from 1, as farm frame ranges count): chunk_owners' interleaved split
+    into N equal shares, so every shard gets a similar mix of the scene; chunk i goes to shard i mod N + 1."""
+    return chunks_of(chunk_owners(chunks, shards, 0.0, start_s=0.0), shard - 1)
+
+
 def read_lines(stream, lines: queue.Queue):
     """Puts every line of a worker's `stream` on `lines`, then None once the worker closed it."""
     for line in stream:

@@ -1,0 +1,58 @@
+"""Farm shards of a scene bake (core.shards): one shard baked into a part file, and parts merged into the scene,
+stored as a one-process bake stores it."""
+
+from dataclasses import asdict
+import os
+import time
+
+import bpy
+
+from ..core import shards
+from ..core.bake import BakeSettings
+from ..core.errors import InputError
+from .scene_bake import SceneBake
+
+
+def bake_shard(context, settings: BakeSettings, names, shard, out: str, workers: int = 1, log=None) -> shards.PartInfo:
+    """Bakes shard (K, N) of the scene's bake and writes its part file; nothing in the scene changes."""
+    start_s, start_cpu_s = time.perf_counter(), _cpu_seconds()
+    scene_bake = SceneBake(context, settings, names, workers=workers, shard=shard)
+    scene_bake.job.run(log=log)
+    results = scene_bake.job.shard_results
+    info = part_info(scene_bake, shard)
+    info.time_s, info.cpu_s = time.perf_counter() - start_s, _cpu_seconds() - start_cpu_s
+    info.rays = int(sum(int(result.rays.sum()) for result in results.values()))
+    shards.write_part(out, info, results)
+    return info
+
+
+def merge_parts(context, paths, log=None) -> SceneBake:
+    """Merges the part files (or every part in a folder given) into the scene as one bake (stored, not saved). Refuses, before changing anything,
+    parts from another scene or selection, stale ones, duplicates and missing shards, naming them all."""
+    if not paths:
+        raise InputError("no part files to merge")
+    parts = [(path, *shards.read_part(path)) for path in shards.part_paths(paths)]
+    chosen = shards.chosen_bake([info for _, info, _ in parts])
+    scene_bake = SceneBake(context, BakeSettings(**chosen.settings), chosen.receivers)
+    problems = shards.refusals(parts, part_info(scene_bake, (0, chosen.shards)))
+    if problems:
+        raise InputError("cannot merge: " + "; ".join(problems) + "; nothing was written")
+    scene_bake.job.take_parts((result for path, _, _ in parts for result in shards.load_chunks(path)),
+                              sum(info.time_s for _, info, _ in parts))
+    scene_bake.run(log=log)
+    return scene_bake
+
+
+def part_info(scene_bake: SceneBake, shard) -> shards.PartInfo:
+    """What a part says of the bake it belongs to, for this scene as it is now."""
+    return shards.PartInfo(
+        shard=shard[0], shards=shard[1], chunks=len(scene_bake.job.chunks),
+        scene=os.path.basename(bpy.data.filepath), surfaces=[s.receiver.name for s in scene_bake.surfaces.all],
+        receivers=[ob.name for ob in scene_bake.objects], settings=asdict(scene_bake.settings),
+        fingerprints=scene_bake.fingerprints)
+
+
+def _cpu_seconds() -> float:
+    """CPU time of this process and its finished children (forked bake workers)."""
+    times = os.times()
+    return times.user + times.system + times.children_user + times.children_system

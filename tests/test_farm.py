@@ -1,0 +1,369 @@
+"""Farm bakes: shards (`prt bake --shard K/N --out PART.npz`) merged by `prt merge` into the bake one process makes,
+bit for bit; the refusals; and the three engines that run them for real: Flamenco's job type (compiled by Node
+against a stand-in for its `author` API, its commands then run in dependency order), Open Job Description
+(`openjd run`) and Dask (a LocalCluster, and a scheduler with two workers started and stopped here)."""
+
+import functools
+import hashlib
+import json
+import os
+import shlex
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import bpy
+import numpy as np
+import pytest
+
+from conftest import ROOT, run_cli
+from test_bake_blender import box, grid
+from test_interreflect_blender import coloured, wall
+from test_stale import stored
+from prt_addon.blender import storage
+from prt_addon.blender.scene_bake import SceneBake
+from prt_addon.core import settings as spec
+from prt_addon.core.bake import BakeSettings
+from prt_addon.core.workers import shard_chunks
+
+SETTINGS = ("--order", "3", "--samples", "16")
+# (mode, receivers): interreflected with two receivers, so two further visible meshes only bounce light.
+BAKES = [("unshadowed", None), ("shadowed", None), ("interreflected", "Floor,Red")]
+VOLATILE = {"time_s", "date", "bake_id"}  # metadata that differs between any two bakes
+FAKE_BLENDER = ROOT / "tests" / "fake_blender.py"
+BIN = Path(sys.executable).parent
+
+
+def room():
+    """A floor of 289 vertices (3 chunks), a red and a green wall and a cube: 6 chunks in all."""
+    coloured(grid("Floor", size=2.0, cuts=16), (0.8, 0.8, 0.8))
+    coloured(wall("Red", 1.0), (0.8, 0.05, 0.05))
+    coloured(wall("Green", -1.0), (0.05, 0.8, 0.05))
+    return box("Cube", half=0.3, location=(0.0, 0.0, 0.3))
+
+
+def save_scene(path: Path, build) -> Path:
+    bpy.ops.wm.read_homefile(use_empty=True)
+    build()
+    bpy.ops.wm.save_as_mainfile(filepath=str(path))
+    bpy.ops.wm.read_homefile(use_empty=True)
+    return path
+
+
+@pytest.fixture(scope="module")
+def scenes(tmp_path_factory):
+    """The room; the room with its cube moved (its parts are stale); the room without its cube (another scene)."""
+    folder = tmp_path_factory.mktemp("farm_scenes")
+
+    def moved():
+        room().location.x += 0.2
+
+    def without_cube():
+        bpy.data.objects.remove(room())
+
+    return {"room": save_scene(folder / "room.blend", room), "moved": save_scene(folder / "moved.blend", moved),
+            "other": save_scene(folder / "other.blend", without_cube)}
+
+
+def ok(result):
+    assert result.returncode == 0, result.stderr
+    return result
+
+
+def bake_options(mode, objects):
+    return [*SETTINGS, "--mode", mode, *(["--objects", objects] if objects else [])]
+
+
+@pytest.fixture(scope="module")
+def reference(scenes, tmp_path_factory):
+    """One process's bake of the room: (the saved file, its report), once per (mode, receivers)."""
+    folder = tmp_path_factory.mktemp("farm_reference")
+
+    @functools.cache
+    def bake(mode, objects=None):
+        out, report = folder / f"{mode}.blend", folder / f"{mode}.json"
+        ok(run_cli("bake", scenes["room"], *bake_options(mode, objects), "--output", out, "--report", report))
+        return out, json.loads(report.read_text())
+    return bake
+
+
+def baked(path) -> dict:
+    """Every baked object's PRT attributes (raw bytes) and metadata, but what differs between any two bakes."""
+    bpy.ops.wm.open_mainfile(filepath=str(path), load_ui=False)
+    found = {}
+    for ob in bpy.data.objects:
+        if ob.type == "MESH" and storage.METADATA_KEY in ob.data:
+            attributes, meta = stored(ob)
+            found[ob.name] = attributes, {key: value for key, value in meta.items() if key not in VOLATILE}
+    bpy.ops.wm.read_homefile(use_empty=True)
+    assert found
+    return found
+
+
+def assert_same_bake(path, reference_path):
+    assert baked(path) == baked(reference_path)
+
+
+def shard_and_merge(scene, folder: Path, shards: int, options, merge_report=None):
+    parts = [folder / "parts" / "deep" / f"part-{shard}.npz" for shard in range(1, shards + 1)]
+    for shard, part in enumerate(parts, start=1):
+        result = ok(run_cli("bake", scene, "--shard", f"{shard}/{shards}", "--out", part, *options))
+        assert f"PRT shard {shard}/{shards}:" in result.stdout
+    out = folder / "merged.blend"
+    ok(run_cli("merge", scene, *parts, "--output", out, *(["--report", merge_report] if merge_report else [])))
+    return out, parts
+
+
+def part_arrays(path) -> dict:
+    """A part's arrays and description, without the seconds it took."""
+    with np.load(path) as data:
+        arrays = {name: data[name].tobytes() for name in data.files if name != "part"}
+        info = json.loads(str(data["part"]))
+    return arrays, {key: value for key, value in info.items() if key not in ("time_s", "cpu_s")}
+
+
+# -- shards and merge ----------------------------------------------------------------------------------------------
+
+def test_a_shard_with_forked_workers_bakes_the_same_chunks_and_bits_as_with_one_process(empty_scene, scenes):
+    bpy.ops.wm.open_mainfile(filepath=str(scenes["room"]), load_ui=False)
+    baked_shards = []
+    for workers in (1, 2):
+        scene_bake = SceneBake(bpy.context, BakeSettings(order=3, samples=16), workers=workers, shard=(1, 2))
+        scene_bake.job.min_rays_for_workers = 0  # workers even for this small scene
+        scene_bake.job.run()
+        baked_shards.append(scene_bake.job.shard_results)
+    one, forked = baked_shards
+    assert sorted(one) == sorted(forked) == shard_chunks(len(scene_bake.job.chunks), 1, 2)
+    for index, result in one.items():
+        for name in ("transfer", "std_error", "rays", "skipped"):
+            assert np.array_equal(getattr(result, name), getattr(forked[index], name)), name
+
+
+@pytest.mark.parametrize("mode, objects", BAKES, ids=[mode for mode, _ in BAKES])
+def test_merged_shards_are_bit_identical_to_one_bake_and_a_retried_shard_writes_the_same_part(
+        scenes, reference, tmp_path, mode, objects):
+    options = bake_options(mode, objects)
+    report = tmp_path / "merged.json"
+    out, parts = shard_and_merge(scenes["room"], tmp_path, 4, options, report)
+    one, one_report = reference(mode, objects)
+    assert_same_bake(out, one)
+    merged_report = json.loads(report.read_text())
+    for key in ("objects", "rays", "vertices", "skipped_vertices", "est_rms_rel_error", "est_max_rel_error",
+                "per_object", "bounces", "bounce_relative_changes", "subsurface_objects"):
+        assert merged_report[key] == one_report[key], key
+    assert merged_report["phases_s"]["shards_s"] > 0
+    first = part_arrays(parts[1])
+    ok(run_cli("bake", scenes["room"], "--shard", "2/4", "--out", parts[1], *options))
+    assert part_arrays(parts[1]) == first
+    assert not list(parts[1].parent.glob(".prt_part_*"))  # the atomic write left no temporary file
+
+
+@pytest.fixture(scope="module")
+def shadowed_parts(scenes, tmp_path_factory):
+    """Three shadowed parts of the room, and a folder with only those."""
+    folder = tmp_path_factory.mktemp("farm_parts")
+    parts = [folder / f"part-{shard}.npz" for shard in (1, 2, 3)]
+    for shard, part in enumerate(parts, start=1):
+        ok(run_cli("bake", scenes["room"], "--shard", f"{shard}/3", "--out", part, *bake_options("shadowed", None)))
+    return parts
+
+
+def digest(path) -> str:
+    return hashlib.blake2b(Path(path).read_bytes()).hexdigest()
+
+
+def refused(result, *words, nothing_at=()):
+    """Exit 1 and one line naming what is wrong, and no file written."""
+    assert result.returncode == 1, result.stdout
+    lines = result.stderr.strip().splitlines()
+    assert lines[-1].startswith("prt: error:"), result.stderr
+    for word in words:
+        assert word in lines[-1], lines[-1]
+    for path in nothing_at:
+        assert not Path(path).exists(), path
+    return lines[-1]
+
+
+def test_merge_refuses_missing_duplicate_foreign_and_stale_parts_naming_them_and_writes_nothing(
+        scenes, shadowed_parts, tmp_path):
+    first, second, third = map(str, shadowed_parts)
+    room_digest, out = digest(scenes["room"]), tmp_path / "out.blend"
+
+    def merge(*parts, scene=scenes["room"]):
+        return run_cli("merge", scene, *parts, "--output", out, "--report", tmp_path / "r.json")
+
+    refused(merge(first, third), "missing shard 2/3", nothing_at=[out, tmp_path / "r.json"])
+    copy = tmp_path / "copy-of-2.npz"
+    shutil.copy(second, copy)
+    refused(merge(first, second, copy, third), "duplicate shard 2/3", second, str(copy), nothing_at=[out])
+    foreign = tmp_path / "foreign.npz"
+    ok(run_cli("bake", scenes["other"], "--shard", "2/3", "--out", foreign, *bake_options("shadowed", None)))
+    refused(merge(first, str(foreign), third), f"{foreign} is from another scene", "missing shard 2/3",
+            nothing_at=[out])
+    other_settings = tmp_path / "other-settings.npz"
+    ok(run_cli("bake", scenes["room"], "--shard", "2/3", "--out", other_settings, *bake_options("shadowed", None),
+               "--seed", "7"))
+    refused(merge(first, str(other_settings), third), f"{other_settings} is stale (settings changed",
+            nothing_at=[out])
+    line = refused(merge(first, second, third, scene=scenes["moved"]), "moved", "occluders changed",
+                   nothing_at=[out])
+    assert all(part in line for part in (first, second, third))
+    ok(merge(first, second, third))  # the same parts, together and of this scene, do merge
+    assert digest(scenes["room"]) == room_digest  # the scene file itself is never written with --output
+
+
+def test_merge_refuses_an_unwritable_output_before_any_work_and_reads_a_parts_folder(
+        scenes, shadowed_parts, tmp_path):
+    not_a_folder = tmp_path / "file"
+    not_a_folder.write_text("")
+    for option in ("--output", "--report"):
+        refused(run_cli("merge", scenes["room"], shadowed_parts[0].parent, option, not_a_folder / "out"),
+                "cannot write", nothing_at=[not_a_folder / "out"])
+    ok(run_cli("merge", scenes["room"], shadowed_parts[0].parent, "--output", tmp_path / "new" / "out.blend"))
+    assert (tmp_path / "new" / "out.blend").exists()
+
+
+def test_bad_shards_exit_1_with_one_line_and_write_no_part(scenes, tmp_path):
+    part = tmp_path / "part.npz"
+    for shard in ("4/3", "0/3", "two/3", "1/2/3"):
+        refused(run_cli("bake", scenes["room"], "--shard", shard, "--out", part), "--shard", nothing_at=[part])
+    refused(run_cli("bake", scenes["room"], "--shard", "1/2"), "--out", nothing_at=[part])
+    refused(run_cli("bake", scenes["room"], "--shard", "1/2", "--out", part, "--output", tmp_path / "x.blend"),
+            "--output", nothing_at=[part])
+    (tmp_path / "file").write_text("")
+    refused(run_cli("bake", scenes["room"], "--shard", "1/2", "--out", tmp_path / "file" / "part.npz"),
+            "cannot write")
+    # A shard that fails (here: no such file) exits non-zero, so the farm retries it.
+    refused(run_cli("bake", tmp_path / "missing.blend", "--shard", "1/2", "--out", part), "no such file",
+            nothing_at=[part])
+
+
+# -- Flamenco ------------------------------------------------------------------------------------------------------
+
+def fake_blender(folder: Path) -> Path:
+    """An executable standing in for a worker's Blender: the bpy module running the add-on's `--command`."""
+    path = folder / "blender"
+    path.write_text(f"#!/bin/sh\nexec {shlex.quote(sys.executable)} {shlex.quote(str(FAKE_BLENDER))} \"$@\"\n")
+    path.chmod(0o755)
+    return path
+
+
+def compile_flamenco_job(settings: dict) -> dict:
+    node = shutil.which("node")
+    if node is None:
+        pytest.skip("Node.js is not installed")
+    compiled = subprocess.run([node, ROOT / "tests" / "flamenco_author.js", ROOT / "farm" / "flamenco" / "prt_bake.js",
+                               json.dumps(settings)], capture_output=True, text=True, timeout=60, check=True)
+    return json.loads(compiled.stdout)
+
+
+def in_dependency_order(tasks: list) -> list:
+    done, ordered = set(), []
+    while len(ordered) < len(tasks):
+        ready = [task for task in tasks if task["name"] not in done and set(task["dependencies"]) <= done]
+        assert ready, "a dependency cycle, or a dependency on a task the job does not have"
+        ordered += ready
+        done |= {task["name"] for task in ready}
+    return ordered
+
+
+def blender_render_command(parameters: dict, blender: Path) -> list[str]:
+    """What a Flamenco Worker runs for blender-render: {exe} {exeArgs} {argsBefore} {blendfile} {args}, with the
+    Manager's default variables {blender} and {blenderArgs} (-b -y)."""
+    exe = parameters["exe"].replace("{blender}", str(blender))
+    exe_args = shlex.split(parameters["exeArgs"].replace("{blenderArgs}", "-b -y"))
+    return [exe, *exe_args, *parameters["argsBefore"], parameters["blendfile"], *parameters["args"]]
+
+
+def test_flamenco_job_type_has_the_bake_settings_with_their_defaults(tmp_path):
+    job_type = compile_flamenco_job({"blendfile": "x.blend", "parts_dir": "p", "output": "o.blend"})["job_type"]
+    defaults = {setting["key"]: setting.get("default") for setting in job_type["settings"]}
+    for setting in spec.BAKE:
+        assert defaults[setting.name] == ("auto" if setting.auto else setting.default), setting.name
+    assert defaults["shards"] >= 1
+    assert {"blendfile", "parts_dir", "output"} <= {s["key"] for s in job_type["settings"] if s.get("required")}
+
+
+def test_flamenco_job_bakes_n_shards_and_a_merge_that_depends_on_them_bit_identical_to_one_bake(
+        scenes, reference, tmp_path):
+    job = compile_flamenco_job({"blendfile": str(scenes["room"]), "shards": 3, "parts_dir": str(tmp_path / "parts"),
+                                "output": str(tmp_path / "baked.blend"), "order": 3, "samples": 16})
+    tasks = job["tasks"]
+    assert [task["name"] for task in tasks] == ["bake-1-of-3", "bake-2-of-3", "bake-3-of-3", "merge"]
+    assert all(task["type"] == "blender" and [c["name"] for c in task["commands"]] == ["blender-render"]
+               for task in tasks)
+    assert all(task["dependencies"] == [] for task in tasks[:3])
+    assert tasks[3]["dependencies"] == ["bake-1-of-3", "bake-2-of-3", "bake-3-of-3"]
+    for shard, task in enumerate(tasks[:3], start=1):
+        args = task["commands"][0]["parameters"]["args"]
+        assert args[:5] == ["--command", "prt", "bake", "--shard", f"{shard}/3"]
+    blender = fake_blender(tmp_path)
+    for task in in_dependency_order(tasks):
+        ok(subprocess.run(blender_render_command(task["commands"][0]["parameters"], blender), capture_output=True,
+                          text=True, timeout=600))
+    assert_same_bake(tmp_path / "baked.blend", reference("shadowed")[0])
+
+
+# -- Open Job Description ------------------------------------------------------------------------------------------
+
+def test_openjd_template_runs_bake_over_1_to_n_then_merge_bit_identical_to_one_bake(scenes, reference, tmp_path):
+    openjd = BIN / "openjd"
+    assert openjd.exists(), "openjd-cli is a dev dependency (requirements-dev.txt)"
+    out = tmp_path / "baked.blend"
+    parameters = {"BlendFile": scenes["room"], "PartsDir": tmp_path / "parts", "Output": out, "Shards": 3,
+                  "Order": 3, "Samples": 16, "Blender": fake_blender(tmp_path)}
+    command = [openjd, "run", ROOT / "farm" / "openjd" / "prt_bake.template.yaml", "--step", "Merge",
+               "--run-dependencies", *sum((["-p", f"{key}={value}"] for key, value in parameters.items()), [])]
+    result = ok(subprocess.run(command, capture_output=True, text=True, timeout=600))
+    assert "Session ended successfully" in result.stdout
+    assert sorted(path.name for path in (tmp_path / "parts").iterdir()) == [f"part-{k}-of-3.npz" for k in (1, 2, 3)]
+    assert_same_bake(out, reference("shadowed")[0])
+
+
+# -- Dask ----------------------------------------------------------------------------------------------------------
+
+def test_dask_local_cluster_bake_is_bit_identical_to_one_bake(scenes, reference, tmp_path):
+    out = tmp_path / "baked.blend"
+    result = ok(run_cli("bake", scenes["room"], "--dask", "local:2", *bake_options("shadowed", None),
+                        "--output", out))
+    assert "PRT dask: 2 shards on local:2" in result.stdout
+    assert_same_bake(out, reference("shadowed")[0])
+
+
+def started(command, log: Path):
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    with open(log, "w") as output:
+        return subprocess.Popen([sys.executable, "-m", *command], stdout=output, stderr=subprocess.STDOUT, env=env)
+
+
+def stop(process):
+    process.terminate()
+    try:
+        process.wait(timeout=30)
+    except subprocess.TimeoutExpired:
+        process.kill()
+        process.wait()
+
+
+def test_dask_scheduler_with_two_worker_processes_bakes_bit_identical_to_one_bake(scenes, reference, tmp_path):
+    from dask.distributed import Client
+    scheduler_file = tmp_path / "scheduler.json"
+    processes = [started(["distributed.cli.dask_scheduler", "--host", "127.0.0.1", "--port", "0",
+                          "--no-dashboard", "--scheduler-file", str(scheduler_file)], tmp_path / "scheduler.log")]
+    try:
+        processes += [started(["distributed.cli.dask_worker", "--scheduler-file", str(scheduler_file),
+                               "--nthreads", "1", "--no-dashboard", "--host", "127.0.0.1"],
+                              tmp_path / f"worker{index}.log") for index in (1, 2)]
+        with Client(scheduler_file=str(scheduler_file), timeout=120) as client:
+            client.wait_for_workers(2, timeout=120)
+            address = client.scheduler.address
+        out = tmp_path / "baked.blend"
+        result = ok(run_cli("bake", scenes["room"], "--dask", address, *bake_options("shadowed", None),
+                            "--output", out))
+        assert f"PRT dask: 2 shards on {address}" in result.stdout
+        assert_same_bake(out, reference("shadowed")[0])
+    finally:
+        for process in reversed(processes):
+            stop(process)
+
