@@ -19,6 +19,12 @@ from .occluders import occluders_from_depsgraph
 INTERPOLATION_KEYS = ("est_interp_rms_rel_error", "est_interp_max_rel_error", "interp_points")
 
 
+def _vertex_count(surface) -> int:
+    """The surface's vertices (a split vertex's points share its position): probes follow the surface, not how
+    finely its normals split it."""
+    return len(np.unique(surface.receiver.positions, axis=0))
+
+
 def worker_launch():
     """How to start a worker: Blender's own binary in a real Blender. With the bpy module, a fork of this process
     on Linux (it starts in milliseconds instead of importing bpy for a second, and shares the ray tree); the
@@ -133,7 +139,7 @@ class SceneBake(WrappingJob):
         vertices (core.interpolation); an interreflected bake's probes measure its direct transfer."""
         probes = {surface.receiver.name: interpolation.face_probes(
                       surface.triangles, surface.receiver.positions, surface.receiver.normals,
-                      interpolation.probe_count(len(surface.receiver.positions)), self.settings.seed)
+                      interpolation.probe_count(_vertex_count(surface)), self.settings.seed)
                   for surface in self.surfaces.receivers}
         probes = {name: found for name, found in probes.items() if len(found.positions)}
         receivers = [bake.Receiver(name, found.positions, found.normals, bake.Receiver.key_for(name + " probes"))
@@ -201,6 +207,7 @@ class SceneBake(WrappingJob):
          self.summary.est_interp_max_rel_error) = interpolation.summarise(np.concatenate(everything or [[]]))
         self.summary.interp_points = self.probe_job.total_vertices
         self.summary.interp_rays = self.probe_job.rays
+        self.summary.phases_s["probes_s"] = self.probe_job.progress.elapsed
         self.summary.time_s = self.sequence.progress.elapsed
 
     def _count_vertices(self):

@@ -11,8 +11,8 @@ import numpy as np
 
 from . import sampling
 
-# Points per object: one per POINTS_PER_PROBE shading points, within these bounds. At 1/16 the probes add about 6 %
-# to a bake's rays and estimate the RMS to about ±10 % (≥ 32 points).
+# Points per object: one per POINTS_PER_PROBE vertices, within these bounds. At 1/16 the probes add about 6 % to a
+# smooth bake's rays and estimate the RMS to about ±10 % (≥ 32 points).
 POINTS_PER_PROBE = 16
 FEWEST_PROBES, MOST_PROBES = 32, 1024
 
