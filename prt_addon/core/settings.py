@@ -4,7 +4,7 @@ from here, so they cannot disagree."""
 
 from dataclasses import dataclass
 
-MAX_ORDER = 10
+MAX_ORDER = 16
 FEWEST_SAMPLES = 8
 MOST_SAMPLES = 1 << 20
 MAX_WORKERS = 64
