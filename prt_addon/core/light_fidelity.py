@@ -21,11 +21,12 @@ import numpy as np
 
 from . import lobes, sh
 from .lights import Environment, LightCache, Sky, Sun
+from .settings import ORDER_TARGET
 
 REFERENCE_ORDER = 32
 ANALYSIS_ROWS = 128
 OCCLUDER_TILTS = tuple(math.radians(tilt) for tilt in (0.0, 30.0, 60.0, 90.0))
-DEFAULT_TARGET = 0.03  # predicted shading error the recommended order meets
+DEFAULT_TARGET = ORDER_TARGET.default  # predicted shading error the recommended order meets
 
 
 @dataclass(frozen=True)

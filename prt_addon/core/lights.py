@@ -66,6 +66,7 @@ class LightCache:
         self.image_rows = image_rows
         self._environments = {}  # (image key, order) → unrotated (3, n²)
         self._placed = {}  # (light, order) → (3, n²), for the lights of the latest update only
+        self.auto_strengths = {}  # order → the Auto window's strength in the latest totals
 
     def totals(self, lights, orders, window="none") -> dict:
         """{order: (3, order²) sum over `lights`} for every order asked for, windowed."""
@@ -73,7 +74,9 @@ class LightCache:
         for order in orders:
             each = self._each(lights, order, placed)
             summed = np.sum(each, axis=0) if lights else np.zeros((3, order * order))
-            totals[order] = windowed(summed, window)
+            if window == "auto":
+                self.auto_strengths[order] = auto_window_strength(summed)
+            totals[order] = windowed(summed, window, self.auto_strengths.get(order))
         self._placed = placed  # forget lights that are gone, so animating one does not grow the cache
         return totals
 
@@ -146,13 +149,14 @@ def _unit(direction):
     return direction / length
 
 
-def windowed(coeffs, window):
-    """coeffs (channels, n²) under a window kind; "auto" finds its taper for these coefficients."""
+def windowed(coeffs, window, strength=None):
+    """coeffs (channels, n²) under a window kind; "auto" takes `strength`, else finds it for these coefficients."""
     if window == "none":
         return coeffs
     order = math.isqrt(coeffs.shape[-1])
     if window == "auto":
-        return lobes.apply_window(coeffs, lobes.window(order, "tapered", auto_window_strength(coeffs)))
+        strength = auto_window_strength(coeffs) if strength is None else strength
+        return lobes.apply_window(coeffs, lobes.window(order, "tapered", strength))
     return lobes.apply_window(coeffs, lobes.window(order, window))
 
 
