@@ -22,6 +22,7 @@ import numpy as np
 from ..core.progress import Job, Progress
 from .compat import new_node_material, new_node_world
 from .lights import aim_lamp, real_light
+from .relighting import paused
 
 REFERENCE_ATTRIBUTE = "_prt_cycles_reference"
 ALBEDO_ATTRIBUTE = "_prt_validation_albedo"
@@ -86,7 +87,7 @@ class CyclesReference(Job):
 
     def _all_passes(self):
         receivers = [ob for group in self.groups for ob in group.objects]
-        with _scene_restored(self.context, list(self.albedos)) as created:
+        with paused(self.context.scene), _scene_restored(self.context, list(self.albedos)) as created:
             environment = _prepare_scene(self.context, receivers, self.albedos, self.samples, created,
                                          self.per_corner)
             if self.scene_light:  # PRT's part of it: a split-off sun is its lamp's

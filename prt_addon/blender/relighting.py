@@ -7,6 +7,7 @@ is shaded again only when its light or its bake changed). The interface's handle
 may use its own. Its own writes change nothing it watches, and a refresh never starts another.
 """
 
+from contextlib import contextmanager
 import math
 
 import bpy
@@ -15,6 +16,20 @@ from ..core import lights as core_lights
 from ..core.errors import StaleBake
 from . import display, heatmaps, storage
 from .lights import environment_image, scene_lights, sync_sun_lamps
+
+
+PAUSED_KEY = "_prt_relighting_paused"  # on a scene while a reference renders it: the display leaves it alone
+
+
+@contextmanager
+def paused(scene):
+    """No refresh touches the scene within: Cycles renders it as a reference, with its own world, materials and
+    lamps, which the display would otherwise take for its own (wrap the world, show a hidden lamp)."""
+    scene[PAUSED_KEY] = True
+    try:
+        yield
+    finally:
+        del scene[PAUSED_KEY]
 
 
 class Relighter:
@@ -37,7 +52,7 @@ class Relighter:
 
         Settings are read from the evaluated scene, so animated and driven values are those of the depsgraph's
         frame, also while rendering; the original meshes and objects are written."""
-        if self.busy:
+        if self.busy or scene.get(PAUSED_KEY):
             return
         self.busy = True
         try:
