@@ -168,8 +168,9 @@ def scene_lights(scene) -> list:
 
 
 def scene_fidelity(scene, target: float = light_fidelity.DEFAULT_TARGET) -> light_fidelity.LightFidelity:
-    """How well each order up to MAX_ORDER carries the light PRT carries (split-off suns are the lamps')."""
-    return light_fidelity.analyse(scene_lights(scene), range(1, MAX_ORDER + 1), target)
+    """How well each order up to MAX_ORDER carries the light PRT carries (split-off suns are the lamps'), through
+    the display's window."""
+    return light_fidelity.analyse(scene_lights(scene), range(1, MAX_ORDER + 1), target, scene.prt_display.window)
 
 
 def describe(entry, scene) -> str:

@@ -6,8 +6,10 @@ and its true norm ‖L‖² (an image's from its pixels, a disc's in closed form
 every order: no order carries it.
 
 Predicted shading error at order n: a vertex shows Σ_k L_k T_k, and for a transfer turned at random the bands do
-not mix, so E[(shading error)²] = Σ_{l≥n} P_l·w_l / (2l+1), w_l the transfer's band power; relative to
-Σ_l P_l·w_l / (2l+1), the shading's own mean square. w_l is the mean over a few model vertices: the clamped cosine
+not mix, so E[(shading error)²] = Σ_l (1 − h_l)²·P_l·w_l / (2l+1), w_l the transfer's band power and h_l the
+window's factor (0 from band n on: the bands not stored); relative to Σ_l P_l·w_l / (2l+1), the shading's own mean
+square. The window is the display's (Auto: found for the light at each order), so the order recommended is the
+one that meets the target as the light is shown. w_l is the mean over a few model vertices: the clamped cosine
 cut by an occluding plane through the vertex tilted 0° (unshadowed), 30°, 60° and 90° (a wall at its foot) from
 its normal; what shadows add at high bands is what makes order 4 miss a sharp light. Bands up to REFERENCE_ORDER
 are summed; an image is projected for it at ANALYSIS_ROWS rows (box-filtered), which holds those bands.
@@ -20,7 +22,7 @@ import math
 import numpy as np
 
 from . import lobes, sh
-from .lights import Environment, LightCache, Sky, Sun
+from .lights import Environment, LightCache, Sky, Sun, auto_window_strength
 from .settings import ORDER_TARGET
 
 REFERENCE_ORDER = 32
@@ -43,15 +45,16 @@ class LightFidelity:
                 + ("  <- recommended" if n == self.recommended else "") for n in sorted(self.predicted)]
 
 
-def analyse(lights, orders, target: float = DEFAULT_TARGET) -> LightFidelity:
-    """The fidelity of the sum of `lights` (core.lights' lights) at each of `orders` (at most REFERENCE_ORDER)."""
+def analyse(lights, orders, target: float = DEFAULT_TARGET, window: str = "none") -> LightFidelity:
+    """The fidelity of the sum of `lights` (core.lights' lights) at each of `orders` (at most REFERENCE_ORDER),
+    shown through `window`."""
     each = LightCache(image_rows=ANALYSIS_ROWS).each(lights, REFERENCE_ORDER)
     total = np.sum(each, axis=0) if lights else np.zeros((3, REFERENCE_ORDER ** 2))
     powers = band_powers(total)
     # ‖Σ L_i‖² = Σ ‖L_i‖² + the cross terms, which the bands up to REFERENCE_ORDER hold
     cross = float(np.sum(np.square(total))) - sum(float(np.sum(np.square(c))) for c in each)
     norm_squared = sum(norm_squared_of(light) for light in lights) + cross
-    predicted = predicted_errors(powers, orders)
+    predicted = {n: predicted_errors(powers, [n], _window_factors(total, n, window))[n] for n in orders}
     return LightFidelity(projection_errors(powers, norm_squared, orders), predicted, target,
                          recommended_order(predicted, target))
 
@@ -85,13 +88,26 @@ def projection_errors(powers: np.ndarray, norm_squared: float, orders) -> dict:
             for n in orders}
 
 
-def predicted_errors(powers: np.ndarray, orders) -> dict:
-    """{n: predicted relative RMS shading error at order n} (module docstring)."""
+def predicted_errors(powers: np.ndarray, orders, window_factors=None) -> dict:
+    """{n: predicted relative RMS shading error at order n} (module docstring); `window_factors` (n,) the window
+    at order n (one order only), default none."""
     bands = np.arange(len(powers))
     shaded = powers * transfer_band_powers(len(powers)) / (2 * bands + 1)
     total = shaded.sum()
-    tails = np.concatenate([np.cumsum(shaded[::-1])[::-1], [0.0]])
-    return {n: math.sqrt(tails[n] / total) if total > 0 else 0.0 for n in orders}
+    errors = {}
+    for n in orders:
+        kept = np.zeros(len(powers))
+        kept[:n] = 1.0 if window_factors is None else window_factors
+        errors[n] = math.sqrt(np.sum(np.square(1.0 - kept) * shaded) / total) if total > 0 else 0.0
+    return errors
+
+
+def _window_factors(total, order, window):
+    """The display's window at `order` for the light whose coefficients (3, ≥ order²) are `total`."""
+    coeffs = total[:, :order * order]
+    if window == "auto":
+        return lobes.window(order, "tapered", auto_window_strength(coeffs))
+    return lobes.window(order, window)
 
 
 def recommended_order(predicted: dict, target: float = DEFAULT_TARGET) -> int:
