@@ -8,11 +8,12 @@ import sys
 import bpy
 
 from ..core.errors import InputError
-from . import bake, demo, export, relight, validate
+from . import bake, demo, export, light_report, relight, validate
 from .common import addon_registered
 
 COMMAND_ID = "prt"
-COMMANDS = {module.__name__.rsplit(".", 1)[-1]: module for module in (bake, export, relight, validate, demo)}
+COMMANDS = {getattr(module, "COMMAND", module.__name__.rsplit(".", 1)[-1]): module
+            for module in (bake, export, relight, validate, light_report, demo)}
 _cli_handle = None
 
 
