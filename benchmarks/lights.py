@@ -161,7 +161,8 @@ def main(argv):
     prt_addon.register()
     try:
         entry = demo_scene()
-        print(f"target {100 * light_fidelity.DEFAULT_TARGET:.0f} % predicted; window {entry.id_data.prt_display.window}")
+        window = entry.id_data.prt_display.window
+        print(f"target {100 * light_fidelity.DEFAULT_TARGET:.0f} % predicted; window {window}")
         print("| HDRI | configuration | order | bake (s) | predicted | vertices vs raw HDRI | image vs raw HDRI |")
         print("| --- | --- | ---: | ---: | ---: | ---: | ---: |")
         bakes = Bakes(args.samples)
