@@ -75,6 +75,8 @@ def test_display_adds_the_lamps_diffuse_light_and_the_world_lights_camera_rays_o
     grid("Floor", cuts=4)
     SceneBake(bpy.context, BakeSettings(order=3, mode="unshadowed")).run(log=lambda line: None)
     world = bpy.data.worlds.new("World")
+    if world.node_tree is None:  # before Blender 5.0 a new world has its default tree only with use_nodes
+        world.use_nodes = True
     empty_scene.world = world
     entry = add_environment(empty_scene, painted_image(height=256, width=512), split_sun=True)
     empty_scene.prt_display.show_prt = True
