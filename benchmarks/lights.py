@@ -1,7 +1,7 @@
 """Light fidelity: the demo scene under each of Blender's bundled HDRIs, against Cycles under the raw HDRI.
 
     .venv/bin/python benchmarks/lights.py [--samples 256] [--cycles-samples 32] [--passes 2] [--hdris a.exr,b.exr]
-                                          [--resolution 160x90] [--json PATH]
+                                          [--resolution 160x90] [--windows] [--json PATH]
 
 Per HDRI, one row per configuration, each at the Window the panel proposes (Auto):
   * PRT only, order 4 (the original program's order);
@@ -13,6 +13,8 @@ space (EEVEE's render of the PRT display against Cycles' render under the raw HD
 The defaults the panels propose are the hybrid where a sun was found, else the recommended order: the goal is a
 median image error over the HDRIs ≤ 5 %, and the demo under sunrise.exr (hybrid) ≤ 8 %.
 The transfer does not depend on the light, so each order is baked once and the rows that need it share the bake.
+--windows measures the Auto window against None and Hanning instead, at the vertices (no images, no hybrid): for
+the PRT-only rows, the error under each window, from the same bakes and Cycles passes.
 """
 
 import argparse
@@ -63,8 +65,9 @@ class Bakes:
         self.transfers, self.times = {}, {}
         self.current = None
 
-    def use(self, order):
-        if self.current == order:
+    def use(self, order, in_scene=True):
+        """Bakes at `order` unless that is the scene's bake, or (not `in_scene`) its transfers are kept."""
+        if self.current == order or not in_scene and order in self.transfers:
             return
         settings = bake.BakeSettings(order=order, samples=self.samples)
         job = SceneBake(bpy.context, settings)
@@ -74,9 +77,13 @@ class Bakes:
         self.current = order
 
 
-def vertex_error(scene, bakes, order, reference, albedos) -> float:
-    """PRT at `order` (its bake, the Auto window) against Cycles' passes under the raw HDRI, all vertices."""
-    light = LightCache().totals(lights.scene_lights(scene), [order], scene.prt_display.window)[order]
+WINDOWS = ("auto", "none", "hanning")
+
+
+def vertex_error(scene, bakes, order, reference, albedos, window=None) -> float:
+    """PRT at `order` (its bake, the display's window or `window`) against Cycles' passes under the raw HDRI, all
+    vertices."""
+    light = LightCache().totals(lights.scene_lights(scene), [order], window or scene.prt_display.window)[order]
     names = list(bakes.transfers[order])
     colours = [prt_colours(bakes.transfers[order][name], light, albedos[name]) for name in names]
     passes = [np.stack(reference.radiance[name]) for name in names]
@@ -108,13 +115,17 @@ def measure(path, entry, bakes, args) -> list[dict]:
     reference, albedos = cycles_at_vertices(context, args.cycles_samples, args.passes)
     rows = []
     for config, order in (("PRT only", BASELINE_ORDER), ("PRT only, recommended", whole.recommended)):
-        bakes.use(order)
+        bakes.use(order, in_scene=not args.windows)
+        if args.windows:
+            rows.append({"hdri": name, "config": config, "order": order, "window_errors": {
+                window: vertex_error(scene, bakes, order, reference, albedos, window) for window in WINDOWS}})
+            continue
         rows.append({"hdri": name, "config": config, "order": order, "bake_s": bakes.times[order],
                      "predicted": whole.predicted[order],
                      "vertex_error": vertex_error(scene, bakes, order, reference, albedos),
                      "image_error": image_error(context, args.resolution)})
     found = lights.found_sun(entry, scene)
-    if found is not None:
+    if found is not None and not args.windows:
         entry.split_sun = True
         rest = lights.scene_fidelity(scene)
         bakes.use(rest.recommended)
@@ -130,6 +141,12 @@ def measure(path, entry, bakes, args) -> list[dict]:
 
 
 def format_row(row) -> str:
+    if "window_errors" in row:
+        errors = row["window_errors"]
+        worse = errors["auto"] > max(errors["none"], errors["hanning"])
+        return (f"| {row['hdri']} | {row['config']} | {row['order']} | "
+                + " | ".join(f"{100 * errors[window]:.1f} %" for window in WINDOWS)
+                + f" | {'WORSE than both' if worse else 'ok'} |")
     vertex = "—" if row["vertex_error"] is None else f"{100 * row['vertex_error']:.1f} %"
     return (f"| {row['hdri']} | {row['config']} | {row['order']} | {row['bake_s']:.1f} | "
             f"{100 * row['predicted']:.1f} % | {vertex} | {100 * row['image_error']:.1f} % |")
@@ -152,6 +169,7 @@ def main(argv):
     parser.add_argument("--passes", type=int, default=2)
     parser.add_argument("--resolution", default="160x90")
     parser.add_argument("--hdris", help="comma-separated file names (default: every bundled one)")
+    parser.add_argument("--windows", action="store_true", help="Auto against None and Hanning at the vertices")
     parser.add_argument("--json", help="write the rows here")
     args = parser.parse_args(argv)
     args.resolution = tuple(int(v) for v in args.resolution.split("x"))
@@ -163,12 +181,21 @@ def main(argv):
         entry = demo_scene()
         window = entry.id_data.prt_display.window
         print(f"target {100 * light_fidelity.DEFAULT_TARGET:.0f} % predicted; window {window}")
-        print("| HDRI | configuration | order | bake (s) | predicted | vertices vs raw HDRI | image vs raw HDRI |")
-        print("| --- | --- | ---: | ---: | ---: | ---: | ---: |")
+        if args.windows:
+            print("| HDRI | configuration | order | Auto | None | Hanning | Auto vs both |")
+            print("| --- | --- | ---: | ---: | ---: | ---: | --- |")
+        else:
+            print("| HDRI | configuration | order | bake (s) | predicted | vertices vs raw HDRI | image vs raw HDRI |")
+            print("| --- | --- | ---: | ---: | ---: | ---: | ---: |")
         bakes = Bakes(args.samples)
         rows = [row for path in paths for row in measure(path, entry, bakes, args)]
     finally:
         prt_addon.unregister()
+    if args.windows:
+        worse = [row for row in rows if row["window_errors"]["auto"] > max(row["window_errors"]["none"],
+                                                                          row["window_errors"]["hanning"])]
+        print(f"Auto worse than both None and Hanning: {len(worse)} of {len(rows)} rows (goal: none)")
+        return
     chosen = defaults(rows)
     median = statistics.median(row["image_error"] for row in chosen)
     print(f"median image error at the proposed defaults over {len(chosen)} HDRIs: {100 * median:.1f} % "

@@ -147,3 +147,18 @@ def test_no_sun_in_a_smooth_sky_nor_in_a_large_bright_window():
     assert sun_extraction.find_sun(smooth)[0] is None
     window = painted_sun((1.0, 0.0, 0.0), math.radians(15.0), (30.0, 30.0, 30.0), height=128, width=256)[0]
     assert sun_extraction.find_sun(window)[0] is None
+
+
+def test_auto_is_never_predicted_worse_than_hanning():
+    """Auto's taper lies between none and Hanning band by band, so through the predicted shading error it can
+    never cost more than Hanning (benchmarks/lights.py --windows measures it against Cycles)."""
+    rng = np.random.default_rng(7)
+    for order in (4, 8, 12):
+        light = np.tile(shading.sun_coefficients(16, tuple(rng.normal(size=3)), 0.05, 3.0)
+                        + lobes.constant_sky(16, 0.1), (3, 1))
+        powers = light_fidelity.band_powers(light)
+        auto = lobes.window(order, "tapered", lights.auto_window_strength(light[:, :order * order]))
+        predicted = {window: light_fidelity.predicted_errors(powers, [order], factors)[order]
+                     for window, factors in (("auto", auto), ("none", None),
+                                             ("hanning", lobes.window(order, "hanning")))}
+        assert predicted["none"] <= predicted["auto"] <= predicted["hanning"]
