@@ -26,13 +26,13 @@ RGB = tuple[float, float, float]
 # lit by exactly the light PRT uses.
 DEFAULT_SUN = {"theta": math.radians(35.0), "phi": math.radians(-60.0), "angular_radius": 0.2, "irradiance": 2.0}
 DEFAULT_SKY = 0.3
+DEFAULT_LIGHT = ("a Hanning-windowed sun (θ 35°, φ -60°, radius 0.2 rad, irradiance 2) over a sky of "
+                 "radiance 0.3")
 
 # Window "auto": the gentlest taper between none and Hanning whose light has at most this share of its magnitude
 # negative (the share validation reports as clamped), found per light sum by bisection on the strength.
 AUTO_CLAMPED_SHARE = 0.01
-_AUTO_STEPS = 16  # bisection steps: the strength to 1/65536, far finer than any visible change
-DEFAULT_LIGHT = ("a Hanning-windowed sun (θ 35°, φ -60°, radius 0.2 rad, irradiance 2) over a sky of "
-                 "radiance 0.3")
+_AUTO_STEPS = 12  # bisection steps: the strength to 1/4096, far finer than any visible change
 
 
 @dataclass(frozen=True)
@@ -166,10 +166,11 @@ def auto_window_strength(coeffs) -> float:
     Hanning leaves more (a stronger taper would cost more than Hanning against the real light)."""
     coeffs = np.atleast_2d(np.asarray(coeffs, dtype=np.float64))
     order = math.isqrt(coeffs.shape[-1])
+    bands = _band_images(coeffs)  # a taper only reweighs them: each step is a weighted sum, not a reconstruction
 
     def keeps(strength):
-        return negative_share(lobes.apply_window(coeffs, lobes.window(order, "tapered", strength))) \
-            <= AUTO_CLAMPED_SHARE
+        factors = lobes.window(order, "tapered", strength)[:, None, None, None]
+        return clamped_fraction((factors * bands).sum(axis=0)) <= AUTO_CLAMPED_SHARE
 
     if keeps(0.0):
         return 0.0
@@ -183,17 +184,23 @@ def auto_window_strength(coeffs) -> float:
 
 
 def negative_share(coeffs) -> float:
-    """statistics.clamped_fraction of the reconstruction of coeffs (channels, n²) on a grid 4 × finer than the
-    order's shortest wavelength."""
-    coeffs = np.atleast_2d(coeffs)
-    basis, rows = _negativity_grid(math.isqrt(coeffs.shape[-1]))
-    return clamped_fraction((basis @ coeffs.T).reshape(rows, 2 * rows, len(coeffs)))
+    """statistics.clamped_fraction of the reconstruction of coeffs (channels, n²) on a grid of about 4 pixels to
+    the order's shortest wavelength."""
+    return clamped_fraction(_band_images(np.atleast_2d(coeffs)).sum(axis=0))
+
+
+def _band_images(coeffs):
+    """(n, rows, 2·rows, channels): band l's part of the reconstruction of coeffs (channels, n²) on the grid."""
+    order = math.isqrt(coeffs.shape[-1])
+    basis, rows = _negativity_grid(order)
+    images = [basis[:, l * l:(l + 1) ** 2] @ coeffs[:, l * l:(l + 1) ** 2].T for l in range(order)]
+    return np.stack(images).reshape(order, rows, 2 * rows, len(coeffs))
 
 
 @functools.lru_cache(maxsize=8)
 def _negativity_grid(order):
     """(the SH basis at the grid's pixel centres (pixels, n²), its rows); kept per order for the handler."""
-    rows = 4 * order + 4
+    rows = 2 * order + 4
     basis = sh.evaluate(order, lobes.equirect_directions(rows, 2 * rows)).reshape(-1, order * order)
     basis.flags.writeable = False
     return basis, rows
