@@ -179,21 +179,21 @@ def _new_display_material(name, original):
     links.new(colour.outputs["Color"], _socket(mix.inputs, "A_Color"))
     links.new(_socket(mix.outputs, "Result_Color"), emission.inputs["Color"])
     _socket(mix.inputs, "Factor_Float").default_value = 1.0
-    _connect_albedo(material, _socket(mix.inputs, "B_Color"), original)
-    links.new(_with_lamp_light(material, emission.outputs["Emission"], original), output.inputs["Surface"])
+    emitted, diffused = _with_lamp_light(material, emission.outputs["Emission"])
+    _connect_albedo(material, [_socket(mix.inputs, "B_Color"), diffused], original)
+    links.new(emitted, output.inputs["Surface"])
     return material
 
 
-def _with_lamp_light(material, emission, original):
-    """emission + switch · Diffuse BSDF(albedo): EEVEE's light from a split-off sun's lamp; the switch
-    (LAMP_SWITCH) starts off."""
+def _with_lamp_light(material, emission):
+    """(emission + switch · Diffuse BSDF(albedo), the socket that takes the diffuse's albedo): EEVEE's light from a
+    split-off sun's lamp; the switch (LAMP_SWITCH) starts off."""
     nodes, links = material.node_tree.nodes, material.node_tree.links
     albedo = nodes.new("ShaderNodeMix")  # white × albedo when the albedo switch is on, else white
     albedo.name = DIFFUSE_ALBEDO_MIX
     albedo.data_type, albedo.blend_type = "RGBA", "MULTIPLY"
     _socket(albedo.inputs, "A_Color").default_value = (1.0, 1.0, 1.0, 1.0)
     _socket(albedo.inputs, "Factor_Float").default_value = 1.0
-    _connect_albedo(material, _socket(albedo.inputs, "B_Color"), original)
     diffuse = nodes.new("ShaderNodeBsdfDiffuse")
     both = nodes.new("ShaderNodeAddShader")
     switch = nodes.new("ShaderNodeMixShader")
@@ -206,7 +206,7 @@ def _with_lamp_light(material, emission, original):
     links.new(diffuse.outputs["BSDF"], both.inputs[1])
     links.new(emission, switch.inputs[1])
     links.new(both.outputs["Shader"], switch.inputs[2])
-    return switch.outputs["Shader"]
+    return switch.outputs["Shader"], _socket(albedo.inputs, "B_Color")
 
 
 def _socket(sockets, identifier):
@@ -214,10 +214,11 @@ def _socket(sockets, identifier):
     return next(socket for socket in sockets if socket.identifier == identifier)
 
 
-def _connect_albedo(material, socket, original):
-    """Feeds `socket` with the original's albedo (materials' rule): its Base Color texture, through the same UV
-    map, or its value."""
-    socket.default_value = (*materials.base_colour_value(original), 1.0)
+def _connect_albedo(material, sockets, original):
+    """Feeds `sockets` with the original's albedo (materials' rule): its Base Color texture, through the same UV
+    map (one texture node for all), or its value."""
+    for socket in sockets:
+        socket.default_value = (*materials.base_colour_value(original), 1.0)
     texture = materials.base_colour_texture(original)
     if texture is None:
         return
@@ -226,7 +227,8 @@ def _connect_albedo(material, socket, original):
     image.location = (-300, -250)
     for setting in ("image", "interpolation", "projection", "extension"):
         setattr(image, setting, getattr(texture, setting))
-    links.new(image.outputs["Color"], socket)
+    for socket in sockets:
+        links.new(image.outputs["Color"], socket)
     uv_map = materials.texture_uv_map(texture)
     if uv_map:
         uv = nodes.new("ShaderNodeUVMap")
