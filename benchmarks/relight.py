@@ -10,6 +10,8 @@ alike; it prints the median times and the median over updates of the ratio 8 ÷ 
 "full update" is the whole `view_layer.update()` with 1 light: it adds Blender re-evaluating the written mesh,
 which follows every write of mesh data and is outside the add-on's control.
 Goals on this machine: ≤ 33 ms at 1 M vertices, and 8 lights ÷ 1 light ≤ 1.1.
+Then, for the orders up to 16 that Order from Lights may pick: the 1 M-vertex grid baked at orders 4, 8 and 16, the
+median time of a 1-light update to the colours written, and the transfer's stored size.
 """
 
 import argparse
@@ -31,15 +33,16 @@ from prt_addon.blender.scene_bake import SceneBake  # noqa: E402
 from prt_addon.core import bake  # noqa: E402
 
 SIDES = (100, 317, 1000)  # grid side: 10 k, 100 k and 1 M vertices
+ORDERS = (4, 8, 16)  # the 1 M-vertex update at each
 LIGHTS = 8
 GOAL_MS = 33.0
 GOAL_RATIO = 1.1
 
 
-def baked_grid(side):
+def baked_grid(side, order=4):
     bpy.ops.wm.read_homefile(use_empty=True)
     bpy.ops.mesh.primitive_grid_add(x_subdivisions=side - 1, y_subdivisions=side - 1, size=2)
-    SceneBake(bpy.context, bake.BakeSettings(order=4, mode="unshadowed")).run(log=lambda line: None)
+    SceneBake(bpy.context, bake.BakeSettings(order=order, mode="unshadowed")).run(log=lambda line: None)
     return bpy.context.object
 
 
@@ -106,6 +109,20 @@ def measure(scene, steps, clock):
     return medians
 
 
+def order_costs(steps, clock):
+    """{order: (median ms of a 1-light update, stored transfer MB)} on the largest grid."""
+    costs = {}
+    for order in ORDERS:
+        mesh = baked_grid(SIDES[-1], order).data
+        stored = sum(a.data_type == "FLOAT_VECTOR" and a.name.startswith("_prt_t") for a in mesh.attributes)
+        set_light_count(bpy.context.scene, 1)
+        times = [timed_update(bpy.context.scene.prt_lights[:1], 0.2 + 1.2 * ((step * 0.37) % 1.0), clock)[0]
+                 for step in range(steps)]
+        costs[order] = (1000 * statistics.median(times), stored * 12 * len(mesh.vertices) / 1e6)
+        gc.collect()
+    return costs
+
+
 def verdict(met):
     return "PASS" if met else "MISS"
 
@@ -131,9 +148,13 @@ def main(argv=None):
             print(f"{vertices:>10,} {ms['one']:>7.2f}ms {ms['eight_one']:>10.2f}ms {ms['ratio_one_moving']:>6.2f}"
                   f" {ms['eight_all']:>11.2f}ms {ms['ratio_all_moving']:>6.2f} {ms['full']:>10.2f}ms")
             gc.collect()
+        costs = order_costs(max(5, args.steps // 6), clock)
     gc.enable()
     prt_addon.unregister()
     largest = max(results)
+    for order, (ms, megabytes) in costs.items():
+        print(f"order {order:2d} at {largest:,} vertices: {ms:.1f} ms per update (1 light), "
+              f"transfer {megabytes:,.0f} MB stored")
     time_ms = results[largest]["one"]
     print(f"per update at {largest:,} vertices: {time_ms:.1f} ms   goal <= {GOAL_MS:.0f} ms   "
           f"{verdict(time_ms <= GOAL_MS)}")
@@ -143,7 +164,9 @@ def main(argv=None):
     if args.json:
         os.makedirs(os.path.dirname(os.path.abspath(args.json)), exist_ok=True)
         with open(args.json, "w", encoding="utf-8") as handle:
-            json.dump({"steps": args.steps, "ms_by_vertices": results}, handle, indent=2)
+            json.dump({"steps": args.steps, "ms_by_vertices": results,
+                       "order_ms_and_mb_at_largest": {str(order): cost for order, cost in costs.items()}},
+                      handle, indent=2)
         print(f"wrote {args.json}")
     return 0
 

@@ -240,8 +240,8 @@ def test_loose_and_degenerate_vertices_get_zero_transfer_with_a_note(empty_scene
 
 def test_edit_mode_and_bad_settings_are_refused_before_any_work(empty_scene):
     floor = grid("Floor")
-    with pytest.raises(InputError, match="order must be 1-10"):
-        SceneBake(bpy.context, BakeSettings(order=12), ["Floor"])
+    with pytest.raises(InputError, match="order must be 1-16"):
+        SceneBake(bpy.context, BakeSettings(order=17), ["Floor"])
     bpy.context.view_layer.objects.active = floor
     bpy.ops.object.mode_set(mode="EDIT")
     try:
@@ -261,7 +261,7 @@ def test_cli_help_lists_the_commands():
 
 @pytest.mark.parametrize("args, words", [
     (("bake", "no_such_file.blend"), "no such file"),
-    (("bake", "{suzanne}", "--order", "11", "--output", "x.blend"), "order must be"),
+    (("bake", "{suzanne}", "--order", "17", "--output", "x.blend"), "order must be"),
     (("bake", "{suzanne}", "--objects", "Nobody"), "no object named 'Nobody'"),
     (("frobnicate",), "invalid choice"),
 ])

@@ -50,6 +50,7 @@ def test_a_file_baked_by_0_1_0_relights_to_the_colours_it_was_saved_with(empty_s
         mesh.color_attributes.remove(mesh.color_attributes["prt_color"])  # the colours must be computed anew
         transfer, meta = storage.read_transfer(mesh)
         assert (meta["order"], meta["mode"], transfer.shape) == (4, "shadowed", (len(mesh.vertices), 16))
+    bpy.context.scene.prt_display.window = "none"  # 0.1.0's default, which its files do not store; now Auto
     prt.handlers.engine.forget()
     prt.handlers.engine.refresh(bpy.context.scene, bpy.context.evaluated_depsgraph_get())
     assert set(before) == {"Sphere", "Grid"}

@@ -63,6 +63,7 @@ def test_each_point_of_a_flat_cube_is_baked_with_its_faces_normal(empty_scene):
 
 def test_relighting_writes_corner_colours_one_product_per_point(empty_scene, prt):
     _, cube = baked_flat_cube()
+    bpy.context.scene.prt_display.window = "none"  # the band-limited sum itself (the default is Auto)
     bpy.ops.prt.light_add(kind="SUN")
     bpy.context.scene.prt_lights[-1].strength = 2.0
     bpy.context.view_layer.update()

@@ -35,9 +35,11 @@ def bake_scene(samples=16):
 
 @pytest.fixture
 def plane(empty_scene):
-    """A 5 × 5 vertex grid facing +Z with nothing above it: every vertex is baked exactly, without rays."""
+    """A 5 × 5 vertex grid facing +Z with nothing above it: every vertex is baked exactly, without rays. No window
+    (the default is Auto), so the colours are the band-limited sums themselves."""
     bpy.ops.mesh.primitive_grid_add(x_subdivisions=4, y_subdivisions=4, size=2)
     bake_scene()
+    empty_scene.prt_display.window = "none"
     return bpy.context.object
 
 
@@ -56,6 +58,7 @@ def demo_blend(addon, tmp_path_factory):
 @pytest.fixture
 def demo(empty_scene, demo_blend):
     bpy.ops.wm.open_mainfile(filepath=demo_blend)
+    bpy.context.scene.prt_display.window = "none"  # the band-limited sums themselves (the default is Auto)
     return bpy.context.scene
 
 

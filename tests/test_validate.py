@@ -173,7 +173,7 @@ def test_the_panel_button_validates_stores_the_result_and_restores_the_scene_exa
     assert "'Box' has no PRT bake" in result.notes  # selected, but nothing to compare
     drawn = []
     bpy.types.PRT_PT_validate.draw(type("Panel", (), {"layout": FakeLayout(drawn)})(), bpy.context)
-    assert drawn == ["samples", "passes"]
+    assert drawn == ["samples", "passes", "reference"]
     # The bake read its albedo through the display's stand-in; so does validation, from the original material.
     validation = prt.validation.Validation(bpy.context, 1, 2, ["Floor"])
     np.testing.assert_allclose(validation.albedos[floor], np.tile((0.2, 0.5, 0.7), (81, 1)), rtol=1e-6)

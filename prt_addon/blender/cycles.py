@@ -21,6 +21,8 @@ import numpy as np
 
 from ..core.progress import Job, Progress
 from .compat import new_node_material, new_node_world
+from .lights import aim_lamp, real_light
+from .relighting import paused
 
 REFERENCE_ATTRIBUTE = "_prt_cycles_reference"
 ALBEDO_ATTRIBUTE = "_prt_validation_albedo"
@@ -54,8 +56,10 @@ class CyclesReference(Job):
     per light group, `passes` bakes of `samples` each with different seeds. step() runs one bake; the scene is
     restored after the last one or on cancel()."""
 
-    def __init__(self, context, groups: list, albedos: dict, samples: int, passes: int, per_corner=frozenset()):
+    def __init__(self, context, groups: list, albedos: dict, samples: int, passes: int, per_corner=frozenset(),
+                 scene_light: bool = False):
         self.context = context
+        self.scene_light = scene_light  # lit by the scene's lights as they are (real_light_world): no group image
         self.groups = groups
         self.albedos = albedos  # every rendered mesh object → (V, 3)
         self.samples = samples
@@ -63,7 +67,7 @@ class CyclesReference(Job):
         self.per_corner = per_corner
         self.radiance = {ob.name: [] for group in groups for ob in group.objects}  # (V or C, 3) per pass
         self.time_s = 0.0
-        self.progress = Progress("PRT validate")
+        self.progress = Progress("PRT validate" + (" (the real light)" if scene_light else ""))
         self._work = self._all_passes()
         self._total_vertices = passes * sum(self._rows(ob) for group in groups for ob in group.objects)
         self._done_vertices = 0
@@ -83,14 +87,17 @@ class CyclesReference(Job):
 
     def _all_passes(self):
         receivers = [ob for group in self.groups for ob in group.objects]
-        with _scene_restored(self.context, list(self.albedos)) as created:
+        with paused(self.context.scene), _scene_restored(self.context, list(self.albedos)) as created:
             environment = _prepare_scene(self.context, receivers, self.albedos, self.samples, created,
                                          self.per_corner)
+            if self.scene_light:  # PRT's part of it: a split-off sun is its lamp's
+                self.context.scene.world = real_light_world(self.context.scene, created, without_split_suns=True)
             first = True
             for group in self.groups:
-                image = environment_image(group.environment)
-                created.append((bpy.data.images, image))
-                environment.image = image
+                if not self.scene_light:
+                    image = environment_image(group.environment)
+                    created.append((bpy.data.images, image))
+                    environment.image = image
                 for seed in range(self.passes):
                     if not first:
                         yield  # one pass per step; the last step also restores the scene
@@ -154,6 +161,53 @@ def _prepare_scene(context, receivers, albedos, samples, created, per_corner):
         attributes.new(REFERENCE_ATTRIBUTE, "FLOAT_COLOR", "CORNER" if ob.name in per_corner else "POINT")
         attributes.active_color = attributes[REFERENCE_ATTRIBUTE]  # what a vertex-colour bake writes
     return environment
+
+
+def real_light_world(scene, created, without_split_suns: bool = False):
+    """A World and Sun lamps lighting Cycles with the scene's SH lights as they are (blender.lights.real_light):
+    each environment's image through its rotation (what was along d comes from R·d: the image is looked up at
+    R⁻¹·ω) × its colour, the skies as a constant, each sun as a Sun lamp of its direction, Angle and irradiance.
+    Everything made is added to `created`."""
+    environments, suns, sky = real_light(scene, without_split_suns)
+    world = new_node_world("PRT real light")
+    created.append((bpy.data.worlds, world))
+    nodes, links = world.node_tree.nodes, world.node_tree.links
+    shader = _background(nodes, (*sky, 1.0)).outputs["Background"]
+    for image, rotation, rgb in environments:
+        turned = nodes.new("ShaderNodeVectorRotate")
+        turned.rotation_type, turned.invert = "EULER_XYZ", True
+        turned.inputs["Rotation"].default_value = rotation
+        links.new(nodes.new("ShaderNodeTexCoord").outputs["Generated"], turned.inputs["Vector"])
+        texture = nodes.new("ShaderNodeTexEnvironment")
+        if isinstance(image, np.ndarray):  # an image without its sun
+            image = environment_image(image, "PRT light without its sun")
+            created.append((bpy.data.images, image))
+        texture.image = image
+        links.new(turned.outputs["Vector"], texture.inputs["Vector"])
+        background = _background(nodes, (1.0, 1.0, 1.0, 1.0))
+        background.inputs["Strength"].default_value = 1.0
+        tinted = nodes.new("ShaderNodeVectorMath")  # the image × the light's colour and strength
+        tinted.operation = "MULTIPLY"
+        tinted.inputs[1].default_value = rgb
+        links.new(texture.outputs["Color"], tinted.inputs[0])
+        links.new(tinted.outputs["Vector"], background.inputs["Color"])
+        both = nodes.new("ShaderNodeAddShader")
+        links.new(shader, both.inputs[0])
+        links.new(background.outputs["Background"], both.inputs[1])
+        shader = both.outputs["Shader"]
+    links.new(shader, nodes.new("ShaderNodeOutputWorld").inputs["Surface"])
+    for sun in suns:
+        lamp = bpy.data.objects.new("PRT real sun", bpy.data.lights.new("PRT real sun", "SUN"))
+        scene.collection.objects.link(lamp)
+        aim_lamp(lamp, sun)
+        created.extend([(bpy.data.lights, lamp.data), (bpy.data.objects, lamp)])  # removed: the object first
+    return world
+
+
+def _background(nodes, colour):
+    background = nodes.new("ShaderNodeBackground")
+    background.inputs["Color"].default_value = colour
+    return background
 
 
 def rendered_meshes(context, receivers):

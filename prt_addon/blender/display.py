@@ -3,6 +3,8 @@
 The colour attribute holds Σ_k L_k T_k (the radiance of a white surface), which Workbench's Attribute colour
 shows as it is. Display materials multiply it per pixel by the albedo (the original material's Base Color
 texture, or its Base Color) into an Emission of strength 1, so EEVEE shows exactly albedo · Σ_k L_k T_k.
+Where a sun is split off an environment into a lamp, they add EEVEE's diffuse light (× the same albedo), which
+draws that sun's sharp shadows; the World then lights camera rays only, since PRT carries its light.
 
 Display materials replace an object's materials without losing them: the originals' names are kept in the
 object's `_prt_original_materials` property and put back when the display is switched off or the add-on disabled.
@@ -18,6 +20,9 @@ from .compat import new_node_material
 DISPLAY_ATTRIBUTE = "prt_color"
 DISPLAY_OF_KEY = "_prt_display_of"  # on a display material: the name of the material it stands for
 ALBEDO_MIX = "PRT Albedo"  # the Mix node whose factor is the albedo switch
+DIFFUSE_ALBEDO_MIX = "PRT Diffuse Albedo"  # the same switch for the lamp's diffuse light
+LAMP_SWITCH = "PRT Lamp"  # the Mix Shader adding EEVEE's diffuse light from a split-off sun's lamp (factor 1)
+CAMERA_ONLY = "PRT Camera Only"  # the World's Mix Shader that keeps its light from everything but camera rays
 
 
 # -- colours ----------------------------------------------------------------------------------------------------
@@ -92,17 +97,62 @@ def restore_all():
     for ob in bpy.data.objects:
         if is_shown(ob):
             restore(ob)
+    for world in bpy.data.worlds:
+        if world.node_tree is not None:
+            _world_for_camera_only(world.node_tree, False)
 
 
 def set_albedo(use_albedo: bool):
     """The albedo switch: every display material multiplies by its albedo (factor 1) or not (factor 0)."""
-    factor = 1.0 if use_albedo else 0.0
-    for material in bpy.data.materials:
-        if DISPLAY_OF_KEY not in material:
-            continue
-        switch = _socket(material.node_tree.nodes[ALBEDO_MIX].inputs, "Factor_Float")
-        if switch.default_value != factor:
-            switch.default_value = factor
+    for material in _display_materials():
+        for name in (ALBEDO_MIX, DIFFUSE_ALBEDO_MIX):
+            _set_factor(material, name, "Factor_Float", use_albedo)
+
+
+def set_lamp_light(scene, lamps: bool):
+    """Adds EEVEE's diffuse light to every display material (a split-off sun shines), or not; with it, the World
+    lights camera rays only, so that EEVEE does not light the display with what PRT already carries."""
+    for material in _display_materials():
+        _set_factor(material, LAMP_SWITCH, "Fac", lamps)
+    if scene.world is not None and scene.world.node_tree is not None:
+        _world_for_camera_only(scene.world.node_tree, lamps)
+
+
+def _display_materials():
+    return [material for material in bpy.data.materials if DISPLAY_OF_KEY in material]
+
+
+def _set_factor(material, node_name, identifier, on: bool):
+    node = material.node_tree.nodes.get(node_name)  # display materials of earlier versions lack the lamp's nodes
+    if node is not None:
+        switch = _socket(node.inputs, identifier)
+        if switch.default_value != float(on):
+            switch.default_value = float(on)
+
+
+def _world_for_camera_only(tree, camera_only: bool):
+    """Inserts (or takes out) a Mix Shader before the World Output: the World's surface for camera rays, nothing
+    for the light it casts."""
+    mix = tree.nodes.get(CAMERA_ONLY)
+    output = next((node for node in tree.nodes if node.type == "OUTPUT_WORLD" and node.is_active_output), None)
+    if output is None or camera_only == (mix is not None):
+        return
+    if camera_only:
+        surface = output.inputs["Surface"].links[0].from_socket if output.inputs["Surface"].links else None
+        mix = tree.nodes.new("ShaderNodeMixShader")
+        mix.name = CAMERA_ONLY
+        path = tree.nodes.new("ShaderNodeLightPath")
+        path.name = f"{CAMERA_ONLY} Path"
+        tree.links.new(path.outputs["Is Camera Ray"], mix.inputs["Fac"])
+        if surface is not None:
+            tree.links.new(surface, mix.inputs[2])
+        tree.links.new(mix.outputs["Shader"], output.inputs["Surface"])
+    else:
+        surface = mix.inputs[2].links[0].from_socket if mix.inputs[2].links else None
+        tree.nodes.remove(tree.nodes[f"{CAMERA_ONLY} Path"])
+        tree.nodes.remove(mix)
+        if surface is not None:
+            tree.links.new(surface, output.inputs["Surface"])
 
 
 def display_material(original):
@@ -124,14 +174,39 @@ def _new_display_material(name, original):
     mix.blend_type = "MULTIPLY"
     emission = nodes.new("ShaderNodeEmission")
     output = nodes.new("ShaderNodeOutputMaterial")
-    for x, node in zip((-300, 0, 250, 450), (colour, mix, emission, output)):
+    for x, node in zip((-300, 0, 250, 650), (colour, mix, emission, output)):
         node.location = (x, 0)
     links.new(colour.outputs["Color"], _socket(mix.inputs, "A_Color"))
     links.new(_socket(mix.outputs, "Result_Color"), emission.inputs["Color"])
-    links.new(emission.outputs["Emission"], output.inputs["Surface"])
     _socket(mix.inputs, "Factor_Float").default_value = 1.0
-    _connect_albedo(material, _socket(mix.inputs, "B_Color"), original)
+    emitted, diffused = _with_lamp_light(material, emission.outputs["Emission"])
+    _connect_albedo(material, [_socket(mix.inputs, "B_Color"), diffused], original)
+    links.new(emitted, output.inputs["Surface"])
     return material
+
+
+def _with_lamp_light(material, emission):
+    """(emission + switch · Diffuse BSDF(albedo), the socket that takes the diffuse's albedo): EEVEE's light from a
+    split-off sun's lamp; the switch (LAMP_SWITCH) starts off."""
+    nodes, links = material.node_tree.nodes, material.node_tree.links
+    albedo = nodes.new("ShaderNodeMix")  # white × albedo when the albedo switch is on, else white
+    albedo.name = DIFFUSE_ALBEDO_MIX
+    albedo.data_type, albedo.blend_type = "RGBA", "MULTIPLY"
+    _socket(albedo.inputs, "A_Color").default_value = (1.0, 1.0, 1.0, 1.0)
+    _socket(albedo.inputs, "Factor_Float").default_value = 1.0
+    diffuse = nodes.new("ShaderNodeBsdfDiffuse")
+    both = nodes.new("ShaderNodeAddShader")
+    switch = nodes.new("ShaderNodeMixShader")
+    switch.name = LAMP_SWITCH
+    switch.inputs["Fac"].default_value = 0.0
+    for x, y, node in ((0, -500, albedo), (250, -500, diffuse), (450, -250, both), (450, 0, switch)):
+        node.location = (x, y)
+    links.new(_socket(albedo.outputs, "Result_Color"), diffuse.inputs["Color"])
+    links.new(emission, both.inputs[0])
+    links.new(diffuse.outputs["BSDF"], both.inputs[1])
+    links.new(emission, switch.inputs[1])
+    links.new(both.outputs["Shader"], switch.inputs[2])
+    return switch.outputs["Shader"], _socket(albedo.inputs, "B_Color")
 
 
 def _socket(sockets, identifier):
@@ -139,10 +214,11 @@ def _socket(sockets, identifier):
     return next(socket for socket in sockets if socket.identifier == identifier)
 
 
-def _connect_albedo(material, socket, original):
-    """Feeds `socket` with the original's albedo (materials' rule): its Base Color texture, through the same UV
-    map, or its value."""
-    socket.default_value = (*materials.base_colour_value(original), 1.0)
+def _connect_albedo(material, sockets, original):
+    """Feeds `sockets` with the original's albedo (materials' rule): its Base Color texture, through the same UV
+    map (one texture node for all), or its value."""
+    for socket in sockets:
+        socket.default_value = (*materials.base_colour_value(original), 1.0)
     texture = materials.base_colour_texture(original)
     if texture is None:
         return
@@ -151,7 +227,8 @@ def _connect_albedo(material, socket, original):
     image.location = (-300, -250)
     for setting in ("image", "interpolation", "projection", "extension"):
         setattr(image, setting, getattr(texture, setting))
-    links.new(image.outputs["Color"], socket)
+    for socket in sockets:
+        links.new(image.outputs["Color"], socket)
     uv_map = materials.texture_uv_map(texture)
     if uv_map:
         uv = nodes.new("ShaderNodeUVMap")

@@ -7,6 +7,7 @@ is shaded again only when its light or its bake changed). The interface's handle
 may use its own. Its own writes change nothing it watches, and a refresh never starts another.
 """
 
+from contextlib import contextmanager
 import math
 
 import bpy
@@ -14,7 +15,21 @@ import bpy
 from ..core import lights as core_lights
 from ..core.errors import StaleBake
 from . import display, heatmaps, storage
-from .lights import environment_image, scene_lights
+from .lights import environment_image, scene_lights, sync_sun_lamps
+
+
+PAUSED_KEY = "_prt_relighting_paused"  # on a scene while a reference renders it: the display leaves it alone
+
+
+@contextmanager
+def paused(scene):
+    """No refresh touches the scene within: Cycles renders it as a reference, with its own world, materials and
+    lamps, which the display would otherwise take for its own (wrap the world, show a hidden lamp)."""
+    scene[PAUSED_KEY] = True
+    try:
+        yield
+    finally:
+        del scene[PAUSED_KEY]
 
 
 class Relighter:
@@ -30,13 +45,14 @@ class Relighter:
         self._shaded = {}     # mesh name → (bake key, light bytes) or a heatmap's state: the colours it holds
         self._reported = set()  # messages already printed
         self.legend = None  # heatmaps.Legend of the last heatmap painted, for the panel
+        self.auto_window = {}  # order → (strength, negative share left) of the last shading's Auto window
 
     def refresh(self, scene, depsgraph):
         """Brings colours and display materials up to date with the scene's SH lights and switches.
 
         Settings are read from the evaluated scene, so animated and driven values are those of the depsgraph's
         frame, also while rendering; the original meshes and objects are written."""
-        if self.busy:
+        if self.busy or scene.get(PAUSED_KEY):
             return
         self.busy = True
         try:
@@ -48,6 +64,7 @@ class Relighter:
             if mode != heatmaps.SHADED:
                 self._paint_heatmaps(receivers, mode)
             elif settings.prt_lights:
+                sync_sun_lamps(settings, create=False)  # a split-off sun's lamp turns with its environment
                 self._shade(receivers, settings)
             _sync_display(scene, receivers, settings.prt_display)
         finally:
@@ -110,6 +127,8 @@ class Relighter:
                 self._report_once(f"PRT: SH light {entry.name!r} has no readable image (missing file?); "
                                   f"it does not shine")
         totals = self._light_cache.totals(scene_lights(settings), orders, settings.prt_display.window)
+        self.auto_window = ({order: (self._light_cache.auto_strengths[order], core_lights.negative_share(totals[order]))
+                             for order in orders} if settings.prt_display.window == "auto" else {})
         for ob, (transfer, corner_points) in receivers:
             light = totals[math.isqrt(transfer.shape[-1])]
             state = (_bake_key(ob.data), light.tobytes())
@@ -147,3 +166,5 @@ def _sync_display(scene, receivers, settings):
         elif display.is_shown(ob) and ob.mode != "EDIT":  # an object being edited keeps what it shows
             display.restore(ob)
     display.set_albedo(settings.use_albedo and settings.mode == heatmaps.SHADED)  # a heatmap shows as it is
+    lamps = any(entry.sun_lamp is not None and not entry.sun_lamp.hide_render for entry in scene.prt_lights)
+    display.set_lamp_light(scene, settings.show_prt and settings.mode == heatmaps.SHADED and lamps)

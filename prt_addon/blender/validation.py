@@ -7,6 +7,12 @@ windowed as the display shows them (core.lights.default_light when there are non
 the spread of its passes, is taken out of the measured difference: the two noises are independent, so their
 squares add (core.statistics), in the RMS and vertex by vertex, for the 99th percentile and the worst vertices.
 The report names the object with the largest p99 and where its worst vertices are (indices and world positions).
+
+With reference "light", Cycles also runs under the scene's lights as they are (an environment's image itself, a
+sun as a Sun lamp, a sky as a constant: cycles.real_light_world), and the report adds that total error beside
+PRT's own and their difference, what band-limiting the light costs. A sun split off an environment is drawn by its
+lamp, not by PRT, so there the vertices are compared with Cycles under the image without its sun (a note says so);
+the hybrid is compared in image space (blender.image_validation).
 """
 
 from dataclasses import asdict, dataclass
@@ -20,11 +26,12 @@ from ..core.progress import WrappingJob
 from ..core.statistics import clamped_fraction, compare, worst_object
 from . import geometry, materials, mesh_arrays, storage
 from .cycles import CyclesReference, LightGroup, rendered_meshes
-from .lights import scene_lights
+from .lights import scene_lights, split_sun
 
 ENVIRONMENT_SIZE = (256, 512)  # rows, columns: order ≤ 10 is smooth at this resolution
 DEFAULT_SAMPLES = 64  # Cycles samples per pass
 DEFAULT_PASSES = 4
+REFERENCES = ("band-limited", "light")  # what Cycles is lit by: the light PRT uses, or also the real light
 CLAMPED_NOTE_ABOVE = 1e-4  # share of the light's magnitude; below it the clamp changes nothing measurable
 INTERREFLECTED_MODE = "interreflected"  # compared with Cycles' indirect diffuse light too
 
@@ -62,6 +69,7 @@ class ValidationReport:
     per_object: dict
     notes: list
     problems: list
+    real_light: dict | None = None  # reference "light": {rel_rms_error, own_rel_rms_error, band_limiting, ...}
 
     def as_dict(self) -> dict:
         return asdict(self)
@@ -71,7 +79,10 @@ class Validation(WrappingJob):
     """The receivers' PRT colours against Cycles under the same light; shared by the operator and the command
     line. Receivers are the named objects, else the selected meshes, else every visible mesh, that have a bake."""
 
-    def __init__(self, context, samples: int = DEFAULT_SAMPLES, passes: int = DEFAULT_PASSES, object_names=None):
+    def __init__(self, context, samples: int = DEFAULT_SAMPLES, passes: int = DEFAULT_PASSES, object_names=None,
+                 reference: str = REFERENCES[0]):
+        if reference not in REFERENCES:
+            raise InputError(f"reference must be one of {', '.join(REFERENCES)}, not {reference!r}")
         if samples < 1:
             raise InputError(f"Cycles samples must be at least 1, not {samples}")
         if passes < 2:
@@ -109,6 +120,9 @@ class Validation(WrappingJob):
             self.notes.append(f"{', '.join(map(repr, sorted(per_corner)))}: baked per face corner (vertices split "
                               f"by their corner normals), so compared with Cycles corner by corner")
         self.cycles = CyclesReference(context, list(groups.values()), self.albedos, samples, passes, per_corner)
+        self.light_cycles = None  # Cycles under the real light, for reference "light"
+        if reference == "light":
+            self.light_cycles = self._real_light_reference(samples, passes, per_corner)
         self.shade_time_s = 0.0
 
     def _receivers(self, context, object_names):
@@ -128,15 +142,56 @@ class Validation(WrappingJob):
             raise InputError("nothing to validate: " + ("; ".join(self.problems) or "no mesh objects"))
         return found
 
+    def _real_light_reference(self, samples, passes, per_corner):
+        scene = self.context.scene
+        if not self.scene_light:
+            raise InputError("validating against the real light needs the scene's SH lights; it has none")
+        split = [entry.name for entry in scene.prt_lights if split_sun(entry, scene) is not None]
+        if split:
+            self.notes.append(f"{', '.join(map(repr, split))}: the sun split off into a lamp is not PRT's; the "
+                              f"vertices are compared with Cycles under the rest of the light (image space compares "
+                              f"the hybrid)")
+        groups = {}
+        for ob, meta in self.receivers:
+            bounces = meta.get("bounces") if meta["mode"] == INTERREFLECTED_MODE else None
+            groups.setdefault(bounces, LightGroup([], None, bounces)).objects.append(ob)
+        return CyclesReference(self.context, list(groups.values()), self.albedos, samples, passes, per_corner,
+                               scene_light=True)
+
+    def _jobs(self) -> list:
+        return [job for job in (self.cycles, self.light_cycles) if job is not None]
+
     def inner(self) -> CyclesReference:
-        """Its steps are Cycles' passes, one a step (a pass cannot be split, whatever the budget)."""
-        return self.cycles
+        """Its steps are Cycles' passes, one a step (a pass cannot be split, whatever the budget): under the
+        band-limited light, then under the real light."""
+        return next((job for job in self._jobs() if not job.finished), self._jobs()[-1])
+
+    def step(self, budget_s: float) -> bool:
+        self.inner().step(budget_s)
+        return all(job.finished for job in self._jobs())
+
+    def cancel(self):
+        for job in self._jobs():
+            if not job.finished:
+                job.cancel()
 
     def outcome(self) -> list:
         return self.comparisons()
 
     def comparisons(self) -> list:
         """Per receiver, and last all vertices together: its current PRT colours against Cycles' passes."""
+        return self._compared(self._prt_colours(), self.cycles)
+
+    def light_comparisons(self) -> list | None:
+        """As comparisons(), against Cycles under the real light; None unless the reference is "light"."""
+        return None if self.light_cycles is None else self._compared(self._prt_colours(), self.light_cycles)
+
+    def _compared(self, colours, cycles) -> list:
+        passes = [np.stack(cycles.radiance[ob.name]) for ob, _ in self.receivers]
+        return ([compare(ob.name, prt, cycles) for (ob, _), prt, cycles in zip(self.receivers, colours, passes)]
+                + [compare("all", np.concatenate(colours), np.concatenate(passes, axis=1))])
+
+    def _prt_colours(self) -> list:
         start = time.perf_counter()
         colours = []
         for ob, meta in self.receivers:
@@ -148,9 +203,7 @@ class Validation(WrappingJob):
                 corner_albedo = self.albedos[ob][mesh_arrays.mesh_corner_vertices(ob.data)]
                 colours.append(prt_colours(transfer[corner_points], self.lights[meta["order"]], corner_albedo))
         self.shade_time_s = time.perf_counter() - start
-        passes = [np.stack(self.cycles.radiance[ob.name]) for ob, _ in self.receivers]
-        return ([compare(ob.name, prt, cycles) for (ob, _), prt, cycles in zip(self.receivers, colours, passes)]
-                + [compare("all", np.concatenate(colours), np.concatenate(passes, axis=1))])
+        return colours
 
     def store_errors(self, comparisons):
         """Each receiver's per-vertex (per-corner) error against Cycles on its mesh, for the viewport's Difference
@@ -177,7 +230,20 @@ class Validation(WrappingJob):
                    f"({self.cycles.passes} × {self.cycles.samples} samples): {overall.text()}; "
                    f"PRT bake {self.bake_time_s():.1f} s, shading {1000 * self.shade_time_s:.0f} ms, "
                    f"Cycles {self.cycles.time_s:.1f} s; {light}, {100 * max(self.clamped.values()):.2f} % clamped")
-        return [summary] + [f"  {c.name}: {c.text()}" for c in comparisons[:-1]] + [self.worst_line(comparisons)]
+        return ([summary] + [f"  {c.name}: {c.text()}" for c in comparisons[:-1]] + [self.worst_line(comparisons)]
+                + self.light_lines(comparisons))
+
+    def light_lines(self, comparisons) -> list[str]:
+        """Against the real light: the total error, PRT's own (the band-limited comparison) and what band-limiting
+        costs, overall and per object; nothing unless the reference is "light"."""
+        real = self.light_comparisons()
+        if real is None:
+            return []
+        rows = [f"  {'overall' if own.name == 'all' else own.name}: total {100 * total.error:.2f} % RMS, PRT's own "
+                f"{100 * own.error:.2f} %, band-limiting {100 * (total.error - own.error):+.2f} points"
+                for own, total in zip(comparisons[-1:] + comparisons[:-1], real[-1:] + real[:-1])]
+        return [f"Against the real light (Cycles {self.light_cycles.passes} × {self.light_cycles.samples} samples, "
+                f"{self.light_cycles.time_s:.1f} s, its noise {100 * real[-1].cycles_noise:.2f} %):"] + rows
 
     def worst_line(self, comparisons) -> str:
         """The worst object, its worst vertices' indices and errors, and where the worst one is."""
@@ -217,7 +283,22 @@ class Validation(WrappingJob):
                    "clamped_fraction": {str(order): share for order, share in self.clamped.items()}},
             per_object={c.name: {**c.as_dict(), **_bake_facts(metadata[c.name])} for c in comparisons[:-1]},
             worst=self.worst(comparisons),
-            notes=self.notes, problems=self.problems)
+            notes=self.notes, problems=self.problems, real_light=self._real_light_report(comparisons))
+
+    def _real_light_report(self, comparisons) -> dict | None:
+        real = self.light_comparisons()
+        if real is None:
+            return None
+
+        def errors(own, total):
+            return {"rel_rms_error": total.error, "measured_rel_rms": total.measured,
+                    "cycles_noise_rel_rms": total.cycles_noise, "rel_p99_error": total.p99,
+                    "own_rel_rms_error": own.error, "band_limiting": total.error - own.error}
+
+        return {**errors(comparisons[-1], real[-1]),
+                "cycles": {"samples": self.light_cycles.samples, "passes": self.light_cycles.passes,
+                           "time_s": self.light_cycles.time_s},
+                "per_object": {own.name: errors(own, total) for own, total in zip(comparisons[:-1], real[:-1])}}
 
 
 def world_positions(context, ob, indices) -> np.ndarray:

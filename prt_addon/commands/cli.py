@@ -8,12 +8,12 @@ import sys
 import bpy
 
 from ..core.errors import InputError
-from . import bake, demo, export, merge, relight, validate, view
+from . import bake, demo, export, light_report, merge, relight, validate, view
 from .common import addon_registered
 
 COMMAND_ID = "prt"
-COMMANDS = {module.__name__.rsplit(".", 1)[-1]: module
-            for module in (bake, merge, export, relight, validate, demo, view)}
+COMMANDS = {getattr(module, "COMMAND", module.__name__.rsplit(".", 1)[-1]): module
+            for module in (bake, merge, export, relight, validate, light_report, demo, view)}
 _cli_handle = None
 
 

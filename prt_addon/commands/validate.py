@@ -3,7 +3,7 @@ per object, and an optional JSON report."""
 
 import bpy
 
-from ..blender.validation import DEFAULT_PASSES, DEFAULT_SAMPLES, Validation
+from ..blender.validation import DEFAULT_PASSES, DEFAULT_SAMPLES, REFERENCES, Validation
 from .common import log, names, open_file, warn, write_json
 
 
@@ -14,12 +14,15 @@ def add_parser(commands):
     parser.add_argument("--samples", type=int, default=DEFAULT_SAMPLES, help="Cycles samples per pass")
     parser.add_argument("--passes", type=int, default=DEFAULT_PASSES,
                         help="Cycles passes with different seeds; their spread measures Cycles' noise (≥ 2)")
+    parser.add_argument("--reference", choices=REFERENCES, default=REFERENCES[0],
+                        help="band-limited: Cycles under the light PRT uses (PRT's own error); light: also under the "
+                             "scene's lights as they are, for the total error and what band-limiting costs")
     parser.add_argument("--report", help="write the comparison as JSON here")
 
 
 def run(args, in_blender: bool) -> int:
     open_file(args.file, required=not in_blender)
-    validation = Validation(bpy.context, args.samples, args.passes, names(args.objects))
+    validation = Validation(bpy.context, args.samples, args.passes, names(args.objects), args.reference)
     warn(validation.problems + validation.notes)
     comparisons = validation.run(log=log)
     log("\n".join(validation.lines(comparisons)))

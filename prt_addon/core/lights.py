@@ -16,7 +16,8 @@ from typing import Callable
 
 import numpy as np
 
-from . import lobes, rotation, shading
+from . import lobes, rotation, shading, sh
+from .statistics import clamped_fraction
 
 RGB = tuple[float, float, float]
 
@@ -27,6 +28,11 @@ DEFAULT_SUN = {"theta": math.radians(35.0), "phi": math.radians(-60.0), "angular
 DEFAULT_SKY = 0.3
 DEFAULT_LIGHT = ("a Hanning-windowed sun (θ 35°, φ -60°, radius 0.2 rad, irradiance 2) over a sky of "
                  "radiance 0.3")
+
+# Window "auto": the gentlest taper between none and Hanning whose light has at most this share of its magnitude
+# negative (the share validation reports as clamped), found per light sum by bisection on the strength.
+AUTO_CLAMPED_SHARE = 0.01
+_AUTO_STEPS = 12  # bisection steps: the strength to 1/4096, far finer than any visible change
 
 
 @dataclass(frozen=True)
@@ -53,31 +59,46 @@ class Sky:
 
 
 class LightCache:
-    """Projections kept between updates, so an update costs one rotation per light that moved."""
+    """Projections kept between updates, so an update costs one rotation per light that moved. With `image_rows`,
+    images are box-filtered to at most that many rows before projection (for an analysis at high order)."""
 
-    def __init__(self):
+    def __init__(self, image_rows: int | None = None):
+        self.image_rows = image_rows
         self._environments = {}  # (image key, order) → unrotated (3, n²)
         self._placed = {}  # (light, order) → (3, n²), for the lights of the latest update only
+        self.auto_strengths = {}  # order → the Auto window's strength in the latest totals
 
     def totals(self, lights, orders, window="none") -> dict:
         """{order: (3, order²) sum over `lights`} for every order asked for, windowed."""
         placed, totals = {}, {}
         for order in orders:
-            missing = []
-            for light in lights:
-                key = (light, order)
-                if key not in placed:
-                    cached = self._placed.get(key)
-                    if cached is None:
-                        missing.append(light)
-                    else:
-                        placed[key] = cached
-            placed.update(self._place(list(dict.fromkeys(missing)), order))
-            summed = (np.sum([placed[light, order] for light in lights], axis=0) if lights
-                      else np.zeros((3, order * order)))
-            totals[order] = _windowed(summed, order, window)
+            each = self._each(lights, order, placed)
+            summed = np.sum(each, axis=0) if lights else np.zeros((3, order * order))
+            if window == "auto":
+                self.auto_strengths[order] = auto_window_strength(summed)
+            totals[order] = windowed(summed, window, self.auto_strengths.get(order))
         self._placed = placed  # forget lights that are gone, so animating one does not grow the cache
         return totals
+
+    def each(self, lights, order) -> list:
+        """Each light's (3, order²) coefficients, unwindowed, in the order given."""
+        placed = {}
+        found = self._each(lights, order, placed)
+        self._placed = placed
+        return found
+
+    def _each(self, lights, order, placed) -> list:
+        missing = []
+        for light in lights:
+            key = (light, order)
+            if key not in placed:
+                cached = self._placed.get(key)
+                if cached is None:
+                    missing.append(light)
+                else:
+                    placed[key] = cached
+        placed.update(self._place(list(dict.fromkeys(missing)), order))
+        return [placed[light, order] for light in lights]
 
     def _place(self, lights, order) -> dict:
         """{(light, order): (3, n²)} for lights not in the cache; the suns share one SH evaluation."""
@@ -101,7 +122,10 @@ class LightCache:
     def _environment(self, light, order):
         key = (light.image, order)
         if key not in self._environments:
-            self._environments[key] = lobes.project_equirect(light.pixels(), order)
+            pixels = light.pixels()
+            if self.image_rows is not None:
+                pixels = lobes.box_filtered(pixels, self.image_rows)
+            self._environments[key] = lobes.project_equirect(pixels, order)
         return self._environments[key]
 
 
@@ -125,10 +149,61 @@ def _unit(direction):
     return direction / length
 
 
-def _windowed(coeffs, order, window):
+def windowed(coeffs, window, strength=None):
+    """coeffs (channels, n²) under a window kind; "auto" takes `strength`, else finds it for these coefficients."""
     if window == "none":
         return coeffs
+    order = math.isqrt(coeffs.shape[-1])
+    if window == "auto":
+        strength = auto_window_strength(coeffs) if strength is None else strength
+        return lobes.apply_window(coeffs, lobes.window(order, "tapered", strength))
     return lobes.apply_window(coeffs, lobes.window(order, window))
+
+
+def auto_window_strength(coeffs) -> float:
+    """The Auto window's strength for coefficients (channels, n²): the smallest "tapered" strength (0: none,
+    1: Hanning) whose reconstruction has at most AUTO_CLAMPED_SHARE of its magnitude negative, or 1 where even
+    Hanning leaves more (a stronger taper would cost more than Hanning against the real light)."""
+    coeffs = np.atleast_2d(np.asarray(coeffs, dtype=np.float64))
+    order = math.isqrt(coeffs.shape[-1])
+    bands = _band_images(coeffs)  # a taper only reweighs them: each step is a weighted sum, not a reconstruction
+
+    def keeps(strength):
+        factors = lobes.window(order, "tapered", strength)[:, None, None, None]
+        return clamped_fraction((factors * bands).sum(axis=0)) <= AUTO_CLAMPED_SHARE
+
+    if keeps(0.0):
+        return 0.0
+    if not keeps(1.0):
+        return 1.0
+    low, high = 0.0, 1.0
+    for _ in range(_AUTO_STEPS):
+        middle = 0.5 * (low + high)
+        low, high = (low, middle) if keeps(middle) else (middle, high)
+    return high
+
+
+def negative_share(coeffs) -> float:
+    """statistics.clamped_fraction of the reconstruction of coeffs (channels, n²) on a grid of about 4 pixels to
+    the order's shortest wavelength."""
+    return clamped_fraction(_band_images(np.atleast_2d(coeffs)).sum(axis=0))
+
+
+def _band_images(coeffs):
+    """(n, rows, 2·rows, channels): band l's part of the reconstruction of coeffs (channels, n²) on the grid."""
+    order = math.isqrt(coeffs.shape[-1])
+    basis, rows = _negativity_grid(order)
+    images = [basis[:, l * l:(l + 1) ** 2] @ coeffs[:, l * l:(l + 1) ** 2].T for l in range(order)]
+    return np.stack(images).reshape(order, rows, 2 * rows, len(coeffs))
+
+
+@functools.lru_cache(maxsize=8)
+def _negativity_grid(order):
+    """(the SH basis at the grid's pixel centres (pixels, n²), its rows); kept per order for the handler."""
+    rows = 2 * order + 4
+    basis = sh.evaluate(order, lobes.equirect_directions(rows, 2 * rows)).reshape(-1, order * order)
+    basis.flags.writeable = False
+    return basis, rows
 
 
 def default_light(order: int) -> np.ndarray:

@@ -116,6 +116,11 @@ def _directions(polar_angles, azimuths):
     return np.stack([x, y, z], axis=-1)
 
 
+def equirect_directions(height, width):
+    """Unit directions (H, W, 3) of the pixel centres of an equirect image in Blender's layout."""
+    return _directions(_row_polar_angles(height), _column_azimuths(width))
+
+
 def equirect_solid_angles(height, width):
     """Exact solid angle (H, 1) of the pixels in each row: (2π/W)·Δz, Δz the row's extent in z = cos θ.
 
@@ -158,18 +163,20 @@ def reconstruct_equirect(coeffs, height, width):
     return image
 
 
-def window(order, kind):
+def window(order, kind, strength=1.0):
     """Per-band factors (order,) that taper high bands to reduce ringing; the window spans `order` bands,
     so the first band not stored would get 0. kind: "none", "hanning" (1 + cos(πl/order))/2,
-    "lanczos" sinc(l/order)."""
+    "lanczos" sinc(l/order), "tapered": Hanning's factors to the power `strength` (0: none, 1: Hanning)."""
     bands = np.arange(order) / order
+    if kind == "tapered":
+        return window(order, "hanning") ** strength
     if kind == "none":
         return np.ones(order)
     if kind == "hanning":
         return 0.5 * (1.0 + np.cos(np.pi * bands))
     if kind == "lanczos":
         return np.sinc(bands)
-    raise ValueError(f"unknown window {kind!r}: expected 'none', 'hanning' or 'lanczos'")
+    raise ValueError(f"unknown window {kind!r}: expected 'none', 'hanning', 'lanczos' or 'tapered'")
 
 
 def apply_window(coeffs, factors):
@@ -178,3 +185,13 @@ def apply_window(coeffs, factors):
     if np.shape(coeffs)[-1] != len(scale):
         raise ValueError(f"{np.shape(coeffs)[-1]} coefficients do not match a window of {len(factors)} bands")
     return np.asarray(coeffs) * scale
+
+
+
+def box_filtered(pixels, rows):
+    """An equirect image's RGB averaged over square blocks to at most `rows` rows (float64)."""
+    rgb = np.asarray(pixels[..., :_RGB], dtype=np.float64)
+    factor = max(1, rgb.shape[0] // rows)
+    height, width = rgb.shape[0] // factor, rgb.shape[1] // factor
+    trimmed = rgb[:height * factor, :width * factor]
+    return trimmed.reshape(height, factor, width, factor, _RGB).mean(axis=(1, 3))

@@ -5,7 +5,7 @@ from here, so they cannot disagree."""
 from dataclasses import dataclass
 import os
 
-MAX_ORDER = 10
+MAX_ORDER = 16
 FEWEST_SAMPLES = 8
 MOST_SAMPLES = 1 << 20
 MAX_WORKERS = 64
@@ -56,6 +56,8 @@ BOUNCES = Setting("bounces", "Bounces", "Interreflection bounces; auto: until th
                   "tolerance", 2, 0, 1000, auto=True)
 BOUNCE_TOLERANCE = Setting("bounce_tolerance", "Tolerance", "Relative error that auto bounces may leave out",
                            1e-3, 1e-8, 0.5)
+ORDER_TARGET = Setting("order_target", "Target", "Order from lights: the lowest order whose predicted shading error "
+                       "under the scene's lights is at most this", 0.03, 0.001, 0.5)
 WORKERS = Setting("workers", "Workers", "Processes that cast rays in parallel (the result is the same); 0: one per "
                   "core of this machine", 0, 0, MAX_WORKERS)
 

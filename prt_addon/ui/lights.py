@@ -9,9 +9,10 @@ import math
 
 import bpy
 from bpy.props import (BoolProperty, CollectionProperty, EnumProperty, FloatProperty, FloatVectorProperty,
-                       IntProperty, PointerProperty)
+                       IntProperty, PointerProperty, StringProperty)
 
-from ..blender.lights import environment_image
+from ..blender.lights import environment_image, found_sun, scene_fidelity, sync_sun_lamps
+from .handlers import engine
 from .heatmaps import DISPLAY_MODES, draw_legend, mode_changed
 from .panels import SidebarPanel
 from .registration import classes_and_properties
@@ -22,6 +23,7 @@ KINDS = [
     ("SKY", "Sky", "The same light from every direction", "LIGHT_HEMI", 2),
 ]
 WINDOWS = [
+    ("auto", "Auto", "The gentlest taper, up to Hanning, that leaves at most 1 % of the summed light negative"),
     ("none", "None", "Full sharpness; sharp lights ring (the negative values are clamped at display)"),
     ("hanning", "Hanning", "Tapers high bands strongly: softest, no visible ringing"),
     ("lanczos", "Lanczos", "Tapers high bands gently: between sharp and soft"),
@@ -29,6 +31,11 @@ WINDOWS = [
 
 
 def _tag_scene(self, context):
+    self.id_data.update_tag()
+
+
+def _split_sun_changed(self, context):
+    sync_sun_lamps(self.id_data, create=True)  # the lamp is made or removed here, never in a handler
     self.id_data.update_tag()
 
 
@@ -61,6 +68,12 @@ class PRT_PG_light(bpy.types.PropertyGroup):
                            description="Equirectangular image; empty: the World's Environment Texture")
     rotation: FloatVectorProperty(name="Rotation", subtype="EULER", size=3, update=_tag_scene,
                                   description="Turns the environment: what was along d comes from R·d")
+    split_sun: BoolProperty(
+        name="Split Off Sun", default=False, update=_split_sun_changed,
+        description="Find a compact strong sun in the image, take it out of what PRT carries and let a Blender Sun "
+                    "lamp draw it, with sharp shadows in EEVEE")
+    sun_lamp: PointerProperty(name="Sun Lamp", type=bpy.types.Object,
+                              description="The Sun lamp that draws the sun split off this environment")
 
 
 class PRT_PG_display(bpy.types.PropertyGroup):
@@ -72,7 +85,7 @@ class PRT_PG_display(bpy.types.PropertyGroup):
                        description="The PRT colours, or a heatmap of where the bake is inaccurate")
     use_albedo: BoolProperty(name="Albedo Texture", default=True, update=_tag_scene,
                              description="Multiply the PRT colour by each material's Base Color texture")
-    window: EnumProperty(name="Window", items=WINDOWS, default="none", update=_tag_scene,
+    window: EnumProperty(name="Window", items=WINDOWS, default="auto", update=_tag_scene,
                          description="Taper high SH bands of the summed light against ringing")
     show_normals: BoolProperty(name="Normals", description="Draw the vertex normals of baked meshes",
                                default=False, update=_tag_scene)
@@ -160,8 +173,54 @@ class PRT_PT_lights(SidebarPanel, bpy.types.Panel):
                 layout.label(text="No usable image: pick one, or give the World an Environment Texture",
                              icon="ERROR")
             layout.prop(light, "rotation")
+            layout.prop(light, "split_sun")
+            if light.split_sun:
+                _draw_found_sun(layout, light, scene)
         layout.prop(light, "colour")
         layout.prop(light, "strength")
+
+
+def _draw_found_sun(layout, light, scene):
+    found = found_sun(light, scene)
+    column = layout.column(align=True)
+    if found is None:
+        column.label(text="No compact strong sun in this image: PRT carries all of it", icon="INFO")
+        return
+    x, y, z = found.direction
+    irradiance = ", ".join(f"{c:.3g}" for c in found.irradiance)
+    column.label(text=f"Sun at θ {math.degrees(math.acos(max(-1.0, min(1.0, z)))):.1f}°, "
+                      f"φ {math.degrees(math.atan2(y, x)):.1f}° (in the image)", icon="LIGHT_SUN")
+    column.label(text=f"Radius {math.degrees(found.angular_radius):.2f}°, irradiance ({irradiance})")
+    column.label(text=f"{100 * found.share:.0f} % of the image's light, drawn by "
+                      f"{light.sun_lamp.name if light.sun_lamp else 'no lamp yet'}")
+
+
+class PRT_OT_analyse_lights(bpy.types.Operator):
+    """How well each SH order carries the scene's lights: projection and predicted shading error per order"""
+    bl_idname = "prt.analyse_lights"
+    bl_label = "Analyse Lights"
+    bl_options = {"REGISTER"}
+
+    def execute(self, context):
+        fidelity = scene_fidelity(context.evaluated_depsgraph_get().scene_eval, context.scene.prt_bake.order_target)
+        context.window_manager.prt_light_fidelity = "\n".join(fidelity.table())
+        self.report({"INFO"}, f"PRT lights: order {fidelity.recommended} recommended")
+        return {"FINISHED"}
+
+
+class PRT_PT_light_fidelity(SidebarPanel, bpy.types.Panel):
+    """The error of each order from the lights alone, and the order the Bake panel's From Lights picks."""
+    bl_label = "Order from Lights"
+    bl_idname = "PRT_PT_light_fidelity"
+    bl_parent_id = "PRT_PT_lights"
+    bl_options = {"DEFAULT_CLOSED"}
+
+    def draw(self, context):
+        layout = self.layout
+        layout.operator("prt.analyse_lights", icon="GRAPH")
+        column = layout.column(align=True)
+        for line in context.window_manager.prt_light_fidelity.splitlines():
+            column.label(text=line)
 
 
 class PRT_PT_display(SidebarPanel, bpy.types.Panel):
@@ -181,17 +240,22 @@ class PRT_PT_display(SidebarPanel, bpy.types.Panel):
         column.enabled = display.show_prt and display.mode == "SHADED"
         column.prop(display, "use_albedo")
         layout.prop(display, "window")
+        if display.window == "auto":
+            for order, (strength, negative) in sorted(engine.auto_window.items()):
+                layout.label(text=f"Order {order}: strength {strength:.2f} (Hanning 1), {100 * negative:.1f} % "
+                                  f"negative")
         column = layout.column(heading="Overlays")
         column.prop(display, "show_normals")
         column.prop(display, "show_light_directions")
 
 
 classes = (PRT_PG_light, PRT_PG_display, PRT_UL_lights, PRT_OT_light_add, PRT_OT_light_remove,
-           PRT_PT_lights, PRT_PT_display)
+           PRT_OT_analyse_lights, PRT_PT_lights, PRT_PT_light_fidelity, PRT_PT_display)
 
 
 register, unregister = classes_and_properties(classes, [
     (bpy.types.Scene, "prt_lights", CollectionProperty(type=PRT_PG_light)),
     (bpy.types.Scene, "prt_active_light", IntProperty(name="Active SH Light", default=0, min=0)),
     (bpy.types.Scene, "prt_display", PointerProperty(type=PRT_PG_display)),
+    (bpy.types.WindowManager, "prt_light_fidelity", StringProperty()),  # the last analysis, a line per order
 ])

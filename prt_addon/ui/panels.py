@@ -27,7 +27,10 @@ class PRT_PT_bake(SidebarPanel, bpy.types.Panel):
         settings = context.scene.prt_bake
         draw_presets(layout)
         layout.prop(settings, "mode")
-        layout.prop(settings, "order")
+        row = layout.row(heading="Order")
+        row.prop(settings, "order_from_lights")
+        column = layout.column()
+        column.prop(settings, "order_target" if settings.order_from_lights else "order")
         column = layout.column()
         column.enabled = settings.mode != "unshadowed"
         column.prop(settings, "samples")

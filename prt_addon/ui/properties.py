@@ -5,6 +5,7 @@ The bake settings' properties are made from core.settings, the one definition th
 import bpy
 from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, PointerProperty, StringProperty
 
+from ..blender.lights import scene_fidelity
 from ..core import settings as spec
 from ..core.bake import BakeSettings
 from .registration import classes_and_properties
@@ -22,14 +23,21 @@ def setting_property(setting: spec.Setting):
 
 
 class PRT_PG_bake_settings(bpy.types.PropertyGroup):
-    __annotations__ = {setting.name: setting_property(setting) for setting in spec.BAKE + (spec.WORKERS,)}
+    __annotations__ = {setting.name: setting_property(setting)
+                       for setting in spec.BAKE + (spec.WORKERS, spec.ORDER_TARGET)}
     __annotations__["auto_bounces"] = BoolProperty(
         name="Auto Bounces", description="Bounce until the rest of the series is below the tolerance", default=True)
+    __annotations__["order_from_lights"] = BoolProperty(
+        name="From Lights", default=False,
+        description="Bake at the lowest order whose predicted shading error under the scene's SH lights meets the "
+                    "target (the Lights panel's Order from Lights); without SH lights, the Order above")
 
     def to_settings(self) -> BakeSettings:
         values = {setting.name: getattr(self, setting.name) for setting in spec.BAKE}
         if self.auto_bounces:
             values["bounces"] = None
+        if self.order_from_lights and self.id_data.prt_lights:
+            values["order"] = scene_fidelity(self.id_data, self.order_target).recommended
         return BakeSettings(**values)
 
     def set_values(self, values: dict):

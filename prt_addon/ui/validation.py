@@ -2,9 +2,9 @@
 background mode) and a panel showing the last result."""
 
 import bpy
-from bpy.props import CollectionProperty, FloatProperty, IntProperty, PointerProperty, StringProperty
+from bpy.props import CollectionProperty, EnumProperty, FloatProperty, IntProperty, PointerProperty, StringProperty
 
-from ..blender.validation import DEFAULT_PASSES, DEFAULT_SAMPLES, Validation
+from ..blender.validation import DEFAULT_PASSES, DEFAULT_SAMPLES, REFERENCES, Validation
 from .operators import ModalJob
 from .panels import SidebarPanel
 from .properties import PRT_PG_job_status
@@ -17,6 +17,11 @@ class PRT_PG_validate_settings(bpy.types.PropertyGroup):
     passes: IntProperty(name="Passes", description="Cycles passes with different seeds: their spread measures "
                         "Cycles' own noise, which is taken out of the comparison",
                         default=DEFAULT_PASSES, min=2, max=64)
+    reference: EnumProperty(name="Against", default=REFERENCES[0], items=[
+        (REFERENCES[0], "Band-Limited Light", "Cycles under the light PRT uses: PRT's own error"),
+        (REFERENCES[1], "Real Light", "Also Cycles under the scene's lights as they are (environment images, Sun "
+                                      "lamps): the total error and what band-limiting costs (twice the Cycles time)"),
+    ])
 
 
 class PRT_PG_compared(bpy.types.PropertyGroup):
@@ -25,6 +30,7 @@ class PRT_PG_compared(bpy.types.PropertyGroup):
     error: FloatProperty()
     cycles_noise: FloatProperty()
     p99: FloatProperty()  # 99th percentile of the per-vertex error, Cycles' noise taken out
+    real_error: FloatProperty(default=-1.0)  # against the real light (negative: not compared)
 
 
 class PRT_PG_validation_result(bpy.types.PropertyGroup):
@@ -53,7 +59,7 @@ class PRT_OT_validate(ModalJob, bpy.types.Operator):
 
     def make_job(self, context):
         settings = context.scene.prt_validate
-        return Validation(context, settings.samples, settings.passes)
+        return Validation(context, settings.samples, settings.passes, reference=settings.reference)
 
     def finish(self, context, validation, comparisons):
         store_result(context.window_manager.prt_validation, validation, comparisons)
@@ -68,11 +74,13 @@ class PRT_OT_validate(ModalJob, bpy.types.Operator):
 
 def store_result(result, validation, comparisons):
     result.compared.clear()
-    for comparison in comparisons:
+    real = validation.light_comparisons() or [None] * len(comparisons)
+    for comparison, total in zip(comparisons, real):
         entry = result.compared.add()
         entry.name = comparison.name
         entry.vertices = comparison.vertices
         entry.error, entry.cycles_noise, entry.p99 = comparison.error, comparison.cycles_noise, comparison.p99
+        entry.real_error = total.error if total is not None else -1.0
     worst = validation.worst(comparisons)
     result.worst_object = worst["object"]
     result.worst_vertices = ", ".join(str(vertex["index"]) for vertex in worst["vertices"])
@@ -96,6 +104,7 @@ class PRT_PT_validate(SidebarPanel, bpy.types.Panel):
         column = layout.column(align=True)
         column.prop(settings, "samples")
         column.prop(settings, "passes")
+        layout.prop(settings, "reference")
         status = context.window_manager.prt_validate_status
         if status.running:
             layout.progress(factor=status.fraction, type="BAR", text=status.text)
@@ -111,6 +120,9 @@ class PRT_PT_validate(SidebarPanel, bpy.types.Panel):
             row.label(text=f"{entry.name} ({entry.vertices} vertices)")
             row.label(text=f"{100 * entry.error:.2f} %, p99 {100 * entry.p99:.1f} %  "
                            f"(noise {100 * entry.cycles_noise:.2f} %)")
+            if entry.real_error >= 0.0:
+                column.label(text=f"    real light: total {100 * entry.real_error:.2f} %, band-limiting "
+                                  f"{100 * (entry.real_error - entry.error):+.2f} points")
         column.label(text=f"Worst: {result.worst_object}, vertices {result.worst_vertices}", icon="VERTEXSEL")
         column.label(text=f"PRT bake {result.prt_bake_s:.1f} s, Cycles {result.cycles_s:.1f} s")
         column.label(text=result.light)
