@@ -132,6 +132,16 @@ class FakeLayout:
         pass
 
 
+def add_light(kind="SUN", **settings):
+    """An SH light added as the panel's + button adds it, then set."""
+    import bpy
+    bpy.ops.prt.light_add(kind=kind)
+    light = bpy.context.scene.prt_lights[-1]
+    for name, value in settings.items():
+        setattr(light, name, value)
+    return light
+
+
 def run_cli(*args, cwd=ROOT, timeout=600):
     """`python -m prt_addon ...` in a fresh process, as a user runs it; a command that hangs fails the test
     (subprocess.TimeoutExpired) instead of stalling the suite."""

@@ -10,7 +10,7 @@ from types import SimpleNamespace
 import bpy
 import pytest
 
-from conftest import FakeLayout
+from conftest import FakeLayout, add_light
 
 SETTINGS = ("theta", "phi", "angular_radius", "sun_object", "rotation")
 SWITCHES = ("show_prt", "use_albedo", "show_normals", "show_light_directions")
@@ -42,14 +42,6 @@ class Area:
 @pytest.fixture
 def drive(addon):
     return importlib.import_module(f"{addon}.prt_addon.ui.drive")
-
-
-def add_light(kind="SUN", **settings):
-    bpy.ops.prt.light_add(kind=kind)
-    light = bpy.context.scene.prt_lights[-1]
-    for name, value in settings.items():
-        setattr(light, name, value)
-    return light
 
 
 @pytest.fixture

@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from browser import chromium, open_viewer, viewer_state
-from conftest import ROOT, run_cli
+from conftest import ROOT, add_light, run_cli
 from core.rotations import matrix_from_euler_zyz
 from prt_addon.blender import lights, sample_scenes
 from prt_addon.blender.relighting import Relighter
@@ -27,13 +27,6 @@ from prt_addon.core import lights as core_lights
 
 SIZE = (320, 240)
 MAX_RMS = 0.02  # the issue's bound: screenshot against Blender's render, RMS over the objects' pixels (sRGB, 0-1)
-
-
-def add_light(kind, **settings):
-    bpy.ops.prt.light_add(kind=kind)
-    light = bpy.context.scene.prt_lights[-1]
-    for name, value in settings.items():
-        setattr(light, name, value)
 
 
 def add_demo_lights():
@@ -138,7 +131,8 @@ def light_from_extras(extras, order) -> np.ndarray:
             light += np.outer(entry["rgb"], lobe)
         else:
             light += np.array(entry["coefficients"])[:, : order * order]
-    return lobes.apply_window(light, lobes.window(order, extras["window"]))
+    strength = extras.get("window_strengths", {}).get(str(order), 1.0)
+    return lobes.apply_window(light, lobes.window(order, extras["window"], strength))
 
 
 def test_exported_transfer_and_lights_shade_to_color_0(demo_glb):
@@ -251,6 +245,7 @@ def test_the_viewers_sh_maths_is_the_add_ons(tmp_path):
     assert np.allclose(got["rotated"], rotation.rotate(coefficients, matrix), atol=1e-12)
     for kind in ("hanning", "lanczos"):
         assert np.allclose(got[kind], lobes.window(order, kind), atol=1e-15)
+    assert np.allclose(got["tapered"], lobes.window(order, "tapered", 0.37), atol=1e-15)
 
 
 def test_the_viewer_turns_lights_as_the_add_on_does():

@@ -12,7 +12,7 @@ import pytest
 from bpy_extras.object_utils import world_to_camera_view
 from mathutils import Vector
 
-from conftest import FakeLayout, run_cli
+from conftest import FakeLayout, add_light, run_cli
 from equirect import equirect_directions
 from node_setups import environment_world, principled_material
 from prt_addon.blender import sample_scenes, storage
@@ -60,14 +60,6 @@ def demo(empty_scene, demo_blend):
     bpy.ops.wm.open_mainfile(filepath=demo_blend)
     bpy.context.scene.prt_display.window = "none"  # the band-limited sums themselves (the default is Auto)
     return bpy.context.scene
-
-
-def add_light(kind="SUN", **settings):
-    bpy.ops.prt.light_add(kind=kind)
-    light = bpy.context.scene.prt_lights[-1]
-    for name, value in settings.items():
-        setattr(light, name, value)
-    return light
 
 
 def colours(mesh) -> np.ndarray:

@@ -12,6 +12,7 @@ const FROM_GLTF = [[1, 0, 0], [0, 0, -1], [0, 1, 0]];
 export class LightSet {
   constructor(extras) {
     this.window = extras.window || "none";
+    this.windowStrengths = extras.window_strengths || {};  // "tapered": the export's Auto strength per order
     this.lights = extras.lights.map((light) => ({...light, turn: IDENTITY}));
     this.active = Math.min(extras.active_light || 0, Math.max(0, this.lights.length - 1));
   }
@@ -67,7 +68,7 @@ export class LightSet {
         light.coefficients.forEach((channel, c) => add(c, rotate(channel.slice(0, n2), turn)));
       }
     }
-    const factors = windowFactors(order, this.window);
+    const factors = windowFactors(order, this.window, this.windowStrengths[order] ?? 1);
     for (let l = 0; l < order; l++) {
       for (let k = l * l; k < (l + 1) * (l + 1); k++) total.forEach((channel) => { channel[k] *= factors[l]; });
     }

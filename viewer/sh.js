@@ -138,11 +138,13 @@ function wTerms(m) {
   return [[1, m - 1, 1.0], [-1, 1 - m, -1.0]];
 }
 
-// Per-band factors against ringing (lobes.window): hanning (1 + cos(πl/n))/2, lanczos sinc(l/n).
-export function windowFactors(order, kind) {
+// Per-band factors against ringing (lobes.window): hanning (1 + cos(πl/n))/2, lanczos sinc(l/n), tapered Hanning's
+// to the power `strength`.
+export function windowFactors(order, kind, strength = 1) {
   return Array.from({length: order}, (_, l) => {
     const x = l / order;
     if (kind === "hanning") return 0.5 * (1 + Math.cos(Math.PI * x));
+    if (kind === "tapered") return Math.pow(0.5 * (1 + Math.cos(Math.PI * x)), strength);
     if (kind === "lanczos") return x === 0 ? 1 : Math.sin(Math.PI * x) / (Math.PI * x);
     return 1;
   });

@@ -38,7 +38,8 @@ def export(scene, path: str, profile_name: str) -> dict:
              for ob, transfer, _, _ in baked}
     shining, window, light_source = _lights(scene)
     orders = {meta["order"] for _, _, meta, _ in baked}
-    totals = core_lights.LightCache().totals(shining, orders, window)
+    cache = core_lights.LightCache()
+    totals = cache.totals(shining, orders, window)
     with _export_scene(scene) as temporary:
         for ob, transfer, meta, corner_points in baked:
             mesh = _link_copy(temporary, ob).data
@@ -49,11 +50,20 @@ def export(scene, path: str, profile_name: str) -> dict:
         _run_exporter(temporary, path)
     top_order = max(orders)
     _finish_file(path, scene.name, packs, {
-        "profile": profile.name, "convention": gltf_pack.CONVENTION, "order": top_order, "window": window,
+        "profile": profile.name, "convention": gltf_pack.CONVENTION, "order": top_order, **_window_extras(window, cache),
         "light_source": light_source, "active_light": getattr(scene, "prt_active_light", 0),
         "lights": gltf_pack.light_extras(shining, top_order)})
     return {"path": os.path.abspath(path), "profile": profile.name, "objects": list(packs),
             "packs": packs, "light_source": light_source}
+
+
+def _window_extras(window, cache) -> dict:
+    """The window as a viewer applies it: Auto as the "tapered" strength it found per order for these lights (a
+    viewer keeps it while it turns them)."""
+    if window != "auto":
+        return {"window": window}
+    return {"window": "tapered", "window_strengths": {str(order): strength
+                                                       for order, strength in cache.auto_strengths.items()}}
 
 
 def baked_objects(scene) -> list:

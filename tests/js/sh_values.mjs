@@ -1,5 +1,6 @@
 // Prints the viewer's SH maths (viewer/sh.js) for the inputs on stdin, for tests/test_gltf.py to compare with the
-// add-on's Python: {order, directions, zonal, rotation, coefficients} → {evaluate, zonal, rotated, hanning, lanczos}.
+// add-on's Python: {order, directions, zonal, rotation, coefficients} → {evaluate, zonal, rotated, hanning, lanczos,
+// tapered (strength 0.37, the Auto window's kind)}.
 import {evaluate, rotate, windowFactors, zonalToSh} from "../../viewer/sh.js";
 
 let text = "";
@@ -13,5 +14,6 @@ process.stdin.on("end", () => {
     rotated: list(rotate(input.coefficients, input.rotation)),
     hanning: windowFactors(input.order, "hanning"),
     lanczos: windowFactors(input.order, "lanczos"),
+    tapered: windowFactors(input.order, "tapered", 0.37),
   }));
 });
