@@ -257,7 +257,7 @@ def test_cli_refuses_a_missing_output_folder_before_baking_and_leaves_the_file(t
     ("--target-error", "nan", "target error must be 0-1"),
     ("--workers", "-1", "workers must be 0-64"),
     ("--samples", "4", "samples must be 8-1048576"),
-    ("--order", "0", "order must be 1-10"),
+    ("--order", "0", "order must be 1-16"),
     ("--bounce-tolerance", "0.9", "tolerance must be 1e-08-0.5"),
 ])
 def test_cli_refuses_every_setting_out_of_its_range_as_it_is_read(option, value, words):
