@@ -6,7 +6,7 @@ from dataclasses import dataclass
 import bpy
 import numpy as np
 
-from ..core import bake, corners
+from ..core import bake, corners, sampling
 from ..core.errors import InputError
 from . import materials
 from .mesh_arrays import (mesh_corner_normals, mesh_corner_vertices, mesh_positions, mesh_triangles,
@@ -28,9 +28,7 @@ def directions_to_world(matrix, normals: np.ndarray) -> np.ndarray:
     """Object-space normals (N, 3) to unit world-space normals through the inverse transpose of matrix_world;
     zero rows stay zero."""
     m = np.asarray(matrix, dtype=np.float64)
-    world = normals @ np.linalg.inv(m[:3, :3])
-    lengths = np.linalg.norm(world, axis=1, keepdims=True)
-    return np.where(lengths > 0, world / np.where(lengths > 0, lengths, 1.0), 0.0)
+    return sampling.unit_or_zero(normals @ np.linalg.inv(m[:3, :3]))
 
 
 # -- which objects --------------------------------------------------------------------------------------------
@@ -123,7 +121,7 @@ def surface_from_object(ob, depsgraph, notes: list, for_storage: bool = True, al
     along_faces = towards_faces @ matrix[:3, :3].T
     tangent = along_faces - np.einsum("ij,ij->i", along_faces, world_normals)[:, None] * world_normals
     scale = np.linalg.norm(np.ptp(world_positions, axis=0))
-    inward, surface_step = (_unit_or_zero(step, 1e-12 * scale) for step in (tangent, along_faces))
+    inward, surface_step = (sampling.unit_or_zero(step, 1e-12 * scale) for step in (tangent, along_faces))
     if not usable.all():
         notes.append(f"{ob.name!r}: {int((~usable).sum())} vertices are loose or only on zero-area faces; "
                      f"they get zero transfer")
@@ -131,11 +129,6 @@ def surface_from_object(ob, depsgraph, notes: list, for_storage: bool = True, al
     receiver = bake.Receiver(ob.name, world_positions, world_normals, bake.Receiver.key_for(ob.name), inward, groups,
                              surface_step)
     return Surface(receiver, triangles, colours, points.corner_points if split else None, points.split_vertices)
-
-
-def _unit_or_zero(vectors: np.ndarray, shortest: float) -> np.ndarray:
-    length = np.linalg.norm(vectors, axis=1, keepdims=True)
-    return np.where(length > shortest, vectors / np.where(length > 0, length, 1.0), 0.0)
 
 
 def _towards_faces(triangles: np.ndarray, positions: np.ndarray) -> np.ndarray:

@@ -379,15 +379,11 @@ def _shared_origins(origins, positions, normals, offset):
     own origins (g, k, 3), raised along the mean normal until it is at least `offset` above every row's tangent
     plane (normals (g, k, 3)), as each row's own origin is."""
     steps = (origins - positions[:, None]).mean(axis=1)
-    mean_normal = _unit(normals.sum(axis=1))
+    mean_normal = sampling.unit_or_zero(normals.sum(axis=1))
     heights = np.einsum("gd,gkd->gk", steps, normals)
     climbs = np.einsum("gd,gkd->gk", mean_normal, normals)  # > 0: the rows' normals are within 90° of each other
     raise_by = np.maximum((offset - heights) / np.maximum(climbs, 1e-3), 0.0).max(axis=1)
     return positions + steps + raise_by[:, None] * mean_normal
-
-
-def _unit(vectors):
-    return vectors / np.maximum(np.linalg.norm(vectors, axis=-1, keepdims=True), 1e-300)
 
 
 def _blocked_round(caster, origins, frames, unshadowed, flat, keys, round_index, per_replicate, settings):
@@ -414,7 +410,7 @@ def _blocked_round(caster, origins, frames, unshadowed, flat, keys, round_index,
     if size == 1:
         cast = sampling.cosine_lattice_directions(points, shifts, frames[:, 0, None])
     else:
-        mean_normal = _unit(normals.sum(axis=1))
+        mean_normal = sampling.unit_or_zero(normals.sum(axis=1))
         closest = np.maximum(np.einsum("gd,gkd->gk", mean_normal, normals).min(1), 0.0)
         floor = -np.sqrt(1.0 - closest * closest)  # the lowest direction of the rows' hemispheres
         cap_frames = np.stack([*sampling.orthonormal_basis(mean_normal), mean_normal], axis=1)

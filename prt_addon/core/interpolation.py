@@ -47,10 +47,8 @@ def face_probes(triangles, positions, normals, count: int, seed: int) -> Probes:
     u, v = np.where(folded, 1.0 - u, u), np.where(folded, 1.0 - v, v)
     weights = np.stack([1.0 - u - v, u, v], axis=1)
     points = triangles[chosen]
-    blended = np.einsum("sk,skd->sd", weights, normals[points])
-    length = np.linalg.norm(blended, axis=1, keepdims=True)
-    return Probes(np.einsum("sk,skd->sd", weights, positions[points]),
-                  np.where(length > 0, blended / np.where(length > 0, length, 1.0), 0.0), points, weights)
+    blended = sampling.unit_or_zero(np.einsum("sk,skd->sd", weights, normals[points]))
+    return Probes(np.einsum("sk,skd->sd", weights, positions[points]), blended, points, weights)
 
 
 def interpolation_errors(probes: Probes, probe_transfer, probe_std_error, transfer, std_error, scale: float):

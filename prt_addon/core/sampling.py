@@ -119,3 +119,10 @@ def orthonormal_basis(normals):
     tangents = np.stack([1.0 + sign * x * x * a, sign * b, -sign * x], axis=-1)
     bitangents = np.stack([b, sign + y * y * a, -y], axis=-1)
     return tangents, bitangents
+
+
+def unit_or_zero(vectors, shortest=0.0):
+    """Vectors (..., 3) scaled to unit length; zero where they are no longer than `shortest`."""
+    vectors = np.asarray(vectors, dtype=np.float64)
+    length = np.linalg.norm(vectors, axis=-1, keepdims=True)
+    return np.where(length > shortest, vectors / np.where(length > 0, length, 1.0), 0.0)
