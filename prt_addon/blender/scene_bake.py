@@ -12,7 +12,7 @@ import numpy as np
 from ..core import bake, job, settings as spec, subsurface, workers
 from ..core.errors import InputError
 from ..core.progress import WrappingJob
-from . import fingerprint, geometry, materials, storage
+from . import fingerprint, geometry, materials, storage, texel_bake
 from .occluders import occluders_from_depsgraph
 
 
@@ -68,16 +68,20 @@ class BakeReport:
     problems: list
     notes: list
     subsurface_objects: list
+    storage: list = field(default_factory=list)  # what each texel or Auto object stores, and why
 
     def as_dict(self) -> dict:
         return {**asdict(self.summary), "objects": self.objects, "problems": self.problems, "notes": self.notes,
-                "subsurface_objects": self.subsurface_objects}
+                "subsurface_objects": self.subsurface_objects, "storage": self.storage}
 
 
 class SceneBake(WrappingJob):
     """Gathers receivers and occluders, runs a TransferJob, then stores everything at once (its outcome)."""
 
-    def __init__(self, context, settings: bake.BakeSettings, object_names=None, workers: int = 1):
+    def __init__(self, context, settings: bake.BakeSettings, object_names=None, workers: int = 1,
+                 storage_options=None):
+        """storage_options: texel_bake.TexelOptions fields that override every receiver's own (the command
+        line's)."""
         problems = settings.problems()
         if problems:
             raise InputError("; ".join(problems))
@@ -114,6 +118,13 @@ class SceneBake(WrappingJob):
             if sources <= {ob.name for ob in self.objects}:
                 self.notes.append("no visible mesh besides the receivers casts shadows; "
                                   "each receiver is shadowed by the receivers only")
+        planned = texel_bake.plan(self.objects, receivers, occluders, settings, storage_options or {}, depsgraph,
+                                  self.notes, self.problems, spec.worker_count(workers))
+        if not planned.objects:
+            raise InputError("nothing to bake: " + "; ".join(self.problems))
+        self.objects, self.surfaces.receivers = planned.objects, planned.surfaces
+        self.storage_decisions = planned.decisions
+        self.notes += planned.decisions
         solved = self.surfaces.all
         self.job = job.TransferJob([surface.receiver for surface in solved], occluders, settings,
                                    spec.worker_count(workers), worker_launch(),
@@ -147,6 +158,9 @@ class SceneBake(WrappingJob):
         self.subsurface_objects = []
         for ob, surface, result in zip(self.objects, self.surfaces.receivers, results):
             material = materials.subsurface_material(ob) if self.settings.mode != "unshadowed" else None
+            if material is not None and isinstance(surface, texel_bake.TexelSurface):
+                self.notes.append(f"{ob.name!r}: its Subsurface Weight is left out of its texel bake")
+                continue
             if material is not None:
                 result.transfer = with_subsurface(surface, result.transfer, *material)
                 self.subsurface_objects.append(ob.name)
@@ -154,7 +168,11 @@ class SceneBake(WrappingJob):
             extra = {"time_s": self.summary.time_s, fingerprint.FINGERPRINT_KEY: self.fingerprints[ob.name]}
             if self.summary.bounces is not None:
                 extra["bounces"] = self.summary.bounces
-            storage.write_transfer(ob, result, extra, self.settings, surface.corner_points, surface.split_vertices)
+            if isinstance(surface, texel_bake.TexelSurface):
+                texel_bake.write(ob, surface, result, extra, self.settings)
+            else:
+                storage.write_transfer(ob, result, extra, self.settings, surface.corner_points,
+                                       surface.split_vertices)
         return self.summary
 
     def _count_vertices(self):
@@ -168,4 +186,4 @@ class SceneBake(WrappingJob):
 
     def report(self) -> BakeReport:
         return BakeReport(self.summary, [ob.name for ob in self.objects], self.problems, self.notes,
-                          self.subsurface_objects)
+                          self.subsurface_objects, self.storage_decisions)

@@ -25,6 +25,7 @@ import numpy as np
 from ..core import bake
 from ..core.statistics import rms
 from ..core.errors import StaleBake
+from .texel_maps import remove_maps
 
 ATTRIBUTE_PREFIX = "_prt_"
 ERROR_ATTRIBUTE = "_prt_error"
@@ -72,10 +73,15 @@ def write_transfer(ob, result, summary_fields: dict, settings: bake.BakeSettings
     if corner_points is not None:
         mesh.attributes.new(POINT_ATTRIBUTE, "INT", "CORNER")
         mesh.attributes[POINT_ATTRIBUTE].data.foreach_set("value", corner_points.astype(np.int32))
+    write_metadata(mesh, result, settings, domain, split_vertices, summary_fields)
+
+
+def write_metadata(mesh, result, settings: bake.BakeSettings, domain: str, split_vertices: int, fields: dict):
+    """The bake's metadata, written last: per vertex or corner (`domain`), or per texel (blender.texel_maps)."""
     mesh[METADATA_KEY] = {
-        "order": order,
+        "order": settings.order,
         "mode": settings.mode,
-        "channels": len(planes),
+        "channels": 1 if result.transfer.ndim == 2 else result.transfer.shape[1],
         "samples": settings.samples,
         "target_error": settings.target_error,
         "seed": settings.seed,
@@ -91,12 +97,13 @@ def write_transfer(ob, result, summary_fields: dict, settings: bake.BakeSettings
         "est_max_rel_error": float(result.rel_error.max(initial=0.0)),
         "date": datetime.now(timezone.utc).isoformat(timespec="seconds"),
         "bake_id": uuid.uuid4().hex,  # tells two bakes apart even within the same second
-        **summary_fields,
+        **fields,
     }
     mesh.update()
 
 
 def remove_transfer(mesh):
+    remove_maps(mesh)
     for name in [a.name for a in mesh.attributes if a.name.startswith(ATTRIBUTE_PREFIX)]:
         mesh.attributes.remove(mesh.attributes[name])
     if METADATA_KEY in mesh:

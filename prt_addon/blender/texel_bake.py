@@ -1,0 +1,262 @@
+"""Which receivers store per texel, and their texels as receiver points: the per-object Storage choice (Vertex,
+Texel, Auto), the lightmap UV map, the checks on it before any ray (no UV map and no permission to add one,
+overlapping UVs, zero-area UV faces, a resolution that would not fit in memory), Auto's probe of the interpolation
+error, the resolution, and writing a texel bake.
+
+A texel bake is a vertex bake's receiver made of texel centres: placed on the evaluated mesh's triangles with the
+corner normals Blender shades with (core.texels), baked by the same job with the same ray offsets, contact rule,
+exact skips and closed-form flat occluders.
+"""
+
+from dataclasses import dataclass, field, fields
+
+import numpy as np
+
+from ..core import bake, checks as core_checks, job, texel_choice, texels
+from ..core.errors import InputError
+from . import storage, texel_maps
+from .mesh_arrays import mesh_triangles
+
+PROVISIONAL_RESOLUTION = 256  # overlaps are looked for at this resolution before the probe decides the real one
+OBJECT_PREFIX = "prt_"        # the Object properties holding each object's choice: prt_storage, prt_resolution, ...
+
+
+@dataclass
+class TexelOptions:
+    """One object's storage choice (core.settings.TEXEL, and the lightmap UV map)."""
+    storage: str = "vertex"
+    resolution: int = 0
+    texel_size: float = 0.0
+    uv_map: str = ""          # empty: PRT's own lightmap UV map
+    new_uv_map: bool = True   # may PRT add its own UV map where there is none
+
+
+def options_for(ob, overrides: dict) -> TexelOptions:
+    """The object's own choice (its prt_* properties, where the add-on is registered), overridden by `overrides`
+    (the command line's options)."""
+    values = {f.name: getattr(ob, OBJECT_PREFIX + f.name) for f in fields(TexelOptions)
+              if hasattr(ob, OBJECT_PREFIX + f.name)}
+    values.update(overrides)
+    return TexelOptions(**values)
+
+
+@dataclass
+class TexelSurface:
+    """A receiver made of texel centres; `mesh_surface` is the object's vertex surface it was placed on."""
+    receiver: bake.Receiver
+    layout: texels.TexelLayout
+    uv_map: str
+    mesh_surface: object
+    albedo: None = None
+    corner_points: None = None
+    split_vertices: int = 0
+
+
+@dataclass
+class Planned:
+    objects: list
+    surfaces: list
+    decisions: list = field(default_factory=list)  # one sentence per texel or Auto object: what and why
+
+
+def plan(objects, surfaces, occluders, settings: bake.BakeSettings, overrides: dict, depsgraph, notes, problems,
+         workers: int = 1) -> Planned:
+    """Each receiver's storage: its vertex surface kept, or a TexelSurface. An object whose texels cannot be
+    baked is dropped with its reason in `problems` (nothing of its earlier bake is touched); what Auto chose, and
+    why, goes to the decisions."""
+    candidates = []
+    for ob, surface in zip(objects, surfaces):
+        options = options_for(ob, overrides)
+        if options.storage == "vertex":
+            continue
+        try:
+            if settings.mode == "interreflected":
+                raise InputError(f"{ob.name!r}: texel storage bakes unshadowed and shadowed transfer; interreflected "
+                                 f"texels would gather bounced light through each hit's lightmap UV, which is not "
+                                 f"built yet: bake it with Storage Vertex")
+            candidate = _Candidate(ob, surface, options, _TriangleGeometry.of(ob, surface, depsgraph))
+            candidate.check_uvs(settings.order)
+        except InputError as problem:
+            problems.append(str(problem))
+            candidate = _Candidate(ob, surface, options, None, failed=True)
+        candidates.append(candidate)
+    probed = [c for c in candidates if not c.failed and c.needs_probe]
+    _probe(probed, occluders, settings, workers)
+    target = settings.target_error or texel_choice.AUTO_TARGET
+    result = Planned([], [])
+    decided = {c.ob.name: c for c in candidates}
+    for ob, surface in zip(objects, surfaces):
+        candidate = decided.get(ob.name)
+        if candidate is None:
+            result.objects.append(ob)
+            result.surfaces.append(surface)
+            continue
+        if candidate.failed:
+            continue
+        try:
+            chosen = candidate.choose(settings.order, target, result.decisions)
+        except InputError as problem:
+            problems.append(str(problem))
+            continue
+        result.objects.append(ob)
+        result.surfaces.append(chosen)
+    _check_memory(result.surfaces, settings.order)
+    return result
+
+
+@dataclass
+class _TriangleGeometry:
+    """An object's evaluated triangles in world space with their lightmap UVs (filled in once the map is known)."""
+    corner_positions: np.ndarray  # (T, 3, 3)
+    corner_normals: np.ndarray    # (T, 3, 3)
+    loop_triangles: np.ndarray    # (T, 3) face corners
+    faces: np.ndarray             # (T,) each triangle's face
+    areas: np.ndarray             # (T,) world area
+
+    @staticmethod
+    def of(ob, surface, depsgraph) -> "_TriangleGeometry":
+        evaluated = ob.evaluated_get(depsgraph)
+        mesh = evaluated.to_mesh()
+        try:
+            loops = mesh_triangles(mesh, of="loops")  # the order surface.triangles was built in
+            faces = np.empty(len(mesh.loop_triangles), dtype=np.int64)
+            mesh.loop_triangles.foreach_get("polygon_index", faces)
+        finally:
+            evaluated.to_mesh_clear()
+        positions = surface.receiver.positions[surface.triangles]
+        areas = 0.5 * np.linalg.norm(np.cross(positions[:, 1] - positions[:, 0], positions[:, 2] - positions[:, 0]),
+                                     axis=1)
+        return _TriangleGeometry(positions, surface.receiver.normals[surface.triangles], loops, faces, areas)
+
+
+@dataclass
+class _Candidate:
+    ob: object
+    surface: object
+    options: TexelOptions
+    geometry: _TriangleGeometry | None
+    failed: bool = False
+    uv_map: str = ""
+    uvs: np.ndarray | None = None
+    probe: texel_choice.InterpolationError | None = None
+
+    @property
+    def needs_probe(self) -> bool:
+        return self.options.storage == "auto" or not (self.options.resolution or self.options.texel_size)
+
+    def check_uvs(self, order: int):
+        """Before any ray: the UV map (made if allowed), its zero-area faces, its overlaps, and whether a given
+        resolution fits in memory."""
+        if self.options.resolution:
+            _fits_in_memory(self.ob.name, self.options.resolution, order)
+        resolution = self.options.resolution or PROVISIONAL_RESOLUTION
+        self.uv_map = texel_maps.lightmap_uv_map(self.ob, self.options.uv_map, self.options.new_uv_map,
+                                                 margin_texels=texels.PACK_MARGIN_TEXELS, resolution=resolution)
+        self.uvs = texel_maps.triangle_uvs(self.ob.data, self.uv_map, self.geometry.loop_triangles)
+        layout = texels.rasterise(self.uvs, resolution, resolution)
+        self._check_layout(layout)
+
+    def _check_layout(self, layout: texels.TexelLayout):
+        name, uv_map = self.ob.name, self.uv_map
+        flat = self.geometry.faces[layout.zero_area & (self.geometry.areas > 0)]
+        if len(flat):
+            raise InputError(f"{name!r}: {len(np.unique(flat))} faces have zero area in UV map {uv_map!r}, so they "
+                             f"would get no texels; unwrap them, or let PRT make its own lightmap UV map")
+        if layout.overlapping:
+            raise InputError(f"{name!r}: UV map {uv_map!r} overlaps itself: {100 * layout.overlap_share:.1f} % of its "
+                             f"texels ({layout.overlapping}) lie on more than one face; a lightmap needs every face "
+                             f"its own texels (UV > Lightmap Pack, or let PRT make its own lightmap UV map)")
+
+    def choose(self, order, target, decisions):
+        """The vertex surface (Auto where interpolating meets the target) or this object's texels."""
+        name, probe = self.ob.name, self.probe
+        said = (f"interpolating between vertices errs {100 * probe.rms:.2f} % RMS (max {100 * probe.max:.1f} %, "
+                f"{probe.probes} probes)" if probe else "")
+        if self.options.storage == "auto" and probe.rms <= target:
+            decisions.append(f"{name!r}: Auto keeps vertex storage: {said}, within the target {100 * target:g} %")
+            return self.surface
+        resolution = self._resolution(target, order)
+        layout = texels.rasterise(self.uvs, resolution, resolution)
+        self._check_layout(layout)
+        why = {"auto": f"Auto stores per texel: {said}, above the target {100 * target:g} %",
+               "texel": "Storage Texel"}[self.options.storage]
+        decisions.append(f"{name!r}: {why}; {resolution} × {resolution} texels in UV map {self.uv_map!r}, "
+                         f"{len(layout.texels)} covered")
+        positions, normals, inward = texels.surface_points(layout.triangles, layout.barycentric,
+                                                           self.geometry.corner_positions,
+                                                           self.geometry.corner_normals)
+        receiver = bake.Receiver(name, positions, normals, bake.Receiver.key_for(name), inward)
+        return TexelSurface(receiver, layout, self.uv_map, self.surface)
+
+    def _resolution(self, target, order) -> int:
+        options = self.options
+        if options.resolution:
+            return options.resolution
+        world_area = float(self.geometry.areas.sum())
+        uv_area = texels.uv_area(self.uvs)
+        if options.texel_size:
+            resolution = texels.resolution_for_texel_size(world_area, uv_area, options.texel_size)
+        else:
+            spacing = np.sqrt(2.0 * world_area / max(1, len(self.geometry.areas)))
+            resolution = texels.resolution_for_target(spacing, self.probe.rms, target, world_area, uv_area)
+        _fits_in_memory(self.ob.name, resolution, order)
+        return resolution
+
+
+def _probe(candidates, occluders, settings: bake.BakeSettings, workers: int):
+    """Bakes each candidate's probe points and the corners of their triangles in one job, and measures the
+    interpolation error (core.texel_choice)."""
+    if not candidates:
+        return
+    receivers, parts = [], []
+    for candidate in candidates:
+        geometry, surface = candidate.geometry, candidate.surface
+        probes = texel_choice.probe_points(geometry.areas, seed=settings.seed)
+        corner_rows = surface.triangles[probes.triangles]  # (M, 3) rows of the vertex surface
+        used, local = np.unique(corner_rows, return_inverse=True)
+        positions, normals, inward = texels.surface_points(probes.triangles, probes.barycentric,
+                                                           geometry.corner_positions, geometry.corner_normals)
+        vertex = surface.receiver
+        vertex_inward = vertex.inward[used] if vertex.inward is not None else np.zeros((len(used), 3))
+        name = candidate.ob.name
+        receivers.append(bake.Receiver(name, np.concatenate([vertex.positions[used], positions]),
+                                       np.concatenate([vertex.normals[used], normals]),
+                                       bake.Receiver.key_for(name + " probes"),
+                                       np.concatenate([vertex_inward, inward])))
+        parts.append((len(used), local.reshape(-1, 3), probes))
+    probe_job = job.TransferJob(receivers, occluders, settings, 1)
+    results = probe_job.run()
+    scale = bake.unshadowed_norm(settings.order)
+    for candidate, result, (corners, local, probes) in zip(candidates, results, parts):
+        transfer = result.transfer.astype(np.float64)
+        candidate.probe = texel_choice.interpolation_error(
+            transfer[corners:], result.std_error[corners:], transfer[:corners][local],
+            result.std_error[:corners][local], probes.barycentric, scale)
+
+
+def _fits_in_memory(name, resolution, order):
+    available = core_checks.available_memory()
+    needed = texels.texel_bake_bytes(resolution, resolution, order)
+    if available is not None and needed > available:
+        raise InputError(f"{name!r}: {resolution} × {resolution} texels need about "
+                         f"{core_checks.format_bytes(needed)}, more than the {core_checks.format_bytes(available)} "
+                         f"available; choose a lower resolution or a larger texel size")
+
+
+def _check_memory(surfaces, order):
+    """All texel objects together, before any ray of the bake itself."""
+    available = core_checks.available_memory()
+    needed = sum(texels.texel_bake_bytes(s.layout.width, s.layout.height, order) for s in surfaces
+                 if isinstance(s, TexelSurface))
+    if available is not None and needed > available:
+        raise InputError(f"the texel maps need about {core_checks.format_bytes(needed)}, more than the "
+                         f"{core_checks.format_bytes(available)} available; choose lower resolutions")
+
+
+def write(ob, surface: TexelSurface, result, extra: dict, settings: bake.BakeSettings):
+    """Replaces the object's earlier bake (vertex or texel) with this texel bake: maps first, metadata last."""
+    mesh = ob.data
+    storage.remove_transfer(mesh)
+    maps = texel_maps.write_maps(mesh, surface.layout, result.transfer, result.rel_error, settings.order,
+                                 surface.uv_map)
+    storage.write_metadata(mesh, result, settings, "TEXEL", 0, {**maps, **extra})

@@ -1,0 +1,94 @@
+"""Texels as receiver points (core.texels) and Auto's interpolation measure (core.texel_choice), against geometry
+worked out by hand."""
+
+import numpy as np
+import pytest
+
+from prt_addon.core import texel_choice, texels
+
+SQUARE = np.array([[[0, 0], [1, 0], [1, 1]], [[0, 0], [1, 1], [0, 1]]], dtype=np.float64)
+
+
+def test_a_unit_square_covers_every_texel_once_and_places_it_at_its_centre():
+    layout = texels.rasterise(SQUARE, 8, 4)
+    assert len(layout.texels) == 32 and layout.overlapping == 0 and not layout.zero_area.any()
+    assert sorted(layout.texels) == list(range(32))
+    centres = np.einsum("nc,ncd->nd", layout.barycentric, SQUARE[layout.triangles])
+    x, y = layout.texels % 8, layout.texels // 8
+    assert np.allclose(centres, np.stack([(x + 0.5) / 8, (y + 0.5) / 4], axis=1))
+
+
+def test_a_triangle_covers_the_centres_inside_it():
+    """Half the square (below its diagonal, edges included) at 4 × 4: the 10 centres with x ≥ y."""
+    layout = texels.rasterise(SQUARE[:1], 4, 4)
+    x, y = layout.texels % 4, layout.texels // 4
+    assert len(layout.texels) == 10 and (x >= y).all()
+
+
+def test_overlaps_are_counted_and_shared_edges_are_not():
+    twice = texels.rasterise(np.concatenate([SQUARE, SQUARE]), 8, 8)
+    assert twice.overlapping == 64 - 8 and twice.overlap_share == pytest.approx(56 / 64)  # the diagonal is an edge
+    half = texels.rasterise(np.concatenate([SQUARE, SQUARE[:1] * 0.5]), 8, 8)
+    assert half.overlapping == 6  # the centres strictly inside the small triangle: x > y, both < 3.5 texels
+
+
+def test_zero_area_uv_triangles_are_found_and_get_no_texels():
+    flat = np.array([[[0.2, 0.2], [0.6, 0.6], [0.4, 0.4]]])
+    layout = texels.rasterise(np.concatenate([SQUARE[:1], flat]), 8, 8)
+    assert layout.zero_area.tolist() == [False, True] and (layout.triangles == 0).all()
+
+
+def test_gutters_take_their_islands_values_and_leave_the_islands_alone():
+    layout = texels.rasterise(SQUARE * 0.5, 16, 16)  # an island in the lower-left quarter
+    values = np.full((len(layout.texels), 1), 3.0)
+    image = texels.to_image(layout, values, gutter=2)
+    assert np.all(image[:8, :8] == 3.0)
+    assert np.all(image[:10, :10] == 3.0) and np.all(image[11:, :] == 0.0) and np.all(image[:, 11:] == 0.0)
+    assert np.array_equal(texels.from_image(layout, image), values)
+
+
+def test_surface_points_interpolate_positions_and_corner_normals_and_step_into_their_triangle():
+    corners = np.array([[[0, 0, 0], [2, 0, 0], [0, 2, 0]]], dtype=np.float64)
+    normals = np.array([[[0, 0, 1], [1, 0, 0], [0, 0, 1]]], dtype=np.float64)
+    weights = np.array([[0.5, 0.5, 0.0], [1 / 3, 1 / 3, 1 / 3]])
+    positions, unit_normals, inward = texels.surface_points(np.array([0, 0]), weights, corners, normals)
+    assert np.allclose(positions, [[1, 0, 0], [2 / 3, 2 / 3, 0]])
+    assert np.allclose(unit_normals[0], np.array([1, 0, 1]) / np.sqrt(2))
+    assert np.allclose(np.einsum("ij,ij->i", inward, unit_normals), 0.0)  # tangent
+    assert inward[0] @ np.array([0, 1, 0]) > 0 and np.allclose(inward[1], 0.0)  # the centroid has no step
+
+
+def test_resolution_follows_the_texel_size_and_the_target():
+    assert texels.resolution_for_texel_size(16.0, 1.0, 0.25) == 16  # a 4 m square filling its UV map
+    assert texels.resolution_for_texel_size(16.0, 0.25, 0.25) == 32
+    # an error 4 × the target at 1 m spacing: spacing ÷ 16 (error ∝ √spacing at a sharp edge)
+    assert texels.resolution_for_target(1.0, 0.04, 0.01, 16.0, 1.0) == 64
+    assert texels.resolution_for_target(1.0, 0.001, 0.01, 16.0, 1.0) == 16
+
+
+def test_memory_grows_with_texels_and_coefficients():
+    assert texels.texel_bake_bytes(8192, 8192, 10) > 64 * 2 ** 30
+    assert texels.texel_bake_bytes(256, 256, 4) < 64 * 2 ** 20
+
+
+def test_probes_spread_in_proportion_to_area():
+    areas = np.array([1.0, 3.0, 0.0])
+    probes = texel_choice.probe_points(areas, count=400)
+    counts = np.bincount(probes.triangles, minlength=3)
+    assert counts.tolist() == [100, 300, 0]
+    assert np.allclose(probes.barycentric.sum(1), 1.0) and (probes.barycentric >= 0).all()
+
+
+def test_interpolation_error_is_zero_for_linear_transfer_and_takes_noise_out():
+    rng = np.random.default_rng(1)
+    corners = rng.normal(size=(500, 3, 4))
+    weights = rng.dirichlet(np.ones(3), size=500)
+    linear = np.einsum("mc,mck->mk", weights, corners)
+    exact = texel_choice.interpolation_error(linear, np.zeros(500), corners, np.zeros((500, 3)), weights, 1.0)
+    assert exact.rms == 0.0 and exact.max == 0.0
+    noise = 0.05
+    noisy = linear + rng.normal(scale=noise / 2, size=linear.shape)  # 4 coefficients: norm error = noise
+    offset = linear + 0.1  # a bias of norm 0.2 everywhere
+    measured = texel_choice.interpolation_error(noisy + 0.1, np.full(500, noise), corners, np.zeros((500, 3)),
+                                                weights, 1.0)
+    assert measured.rms == pytest.approx(np.linalg.norm(offset - linear, axis=1).mean(), rel=0.05)
