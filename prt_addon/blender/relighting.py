@@ -10,6 +10,7 @@ may use its own. Its own writes change nothing it watches, and a refresh never s
 import math
 
 import bpy
+import numpy as np
 
 from ..core import lights as core_lights
 from ..core.errors import StaleBake
@@ -90,8 +91,8 @@ class Relighter:
         if cached is not None and cached[0] == key:
             return cached[1]
         try:
-            if texel_maps.is_texel_bake(mesh):  # (texels, n²): a view of the coefficient planes
-                baked = texel_maps.read_planes(mesh)[0].T, texel_maps.TEXEL_STORAGE
+            if texel_maps.is_texel_bake(mesh):  # one row per texel, as the shading reads them
+                baked = np.ascontiguousarray(texel_maps.read_planes(mesh)[0].T), texel_maps.TEXEL_STORAGE
             else:
                 baked = storage.read_transfer(mesh)[0], storage.corner_points_of(mesh)
         except StaleBake as problem:
@@ -119,7 +120,7 @@ class Relighter:
             if self._shaded.get(ob.data.name_full) == state:
                 continue
             if corner_points is texel_maps.TEXEL_STORAGE:
-                texel_maps.write_shaded(ob.data, transfer.T, light)
+                texel_maps.write_shaded(ob.data, transfer, light)
             else:
                 display.write_display_colours(ob.data, transfer, light, corner_points)
             self._shaded[ob.data.name_full] = state

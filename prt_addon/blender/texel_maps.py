@@ -176,12 +176,16 @@ def shaded_image(mesh):
     return image
 
 
-def write_shaded(mesh, planes: np.ndarray, light: np.ndarray):
-    """One product per texel: Σ_k L_k T_k for planes (n², N) and light (3, n²) into the shaded image (RGBA,
-    alpha 1, negative values clamped to black), with float32 foreach_set."""
+def write_shaded(mesh, transfer: np.ndarray, light: np.ndarray):
+    """One product per texel: Σ_k L_k T_k for transfer (N, n²) (one row per texel, float32) and light (3, n²) into
+    the shaded image (RGBA, alpha 1, negative values clamped to black), with float32 foreach_set. One matrix
+    product straight into RGBA rows (the light padded with a zero column for alpha) is about twice as fast as
+    shading per channel and interleaving."""
     image = shaded_image(mesh)
-    rgba = np.ones((planes.shape[1], 4), dtype=np.float32)
-    rgba[:, :3] = (light.astype(np.float32) @ planes).T
+    padded = np.zeros((transfer.shape[1], 4), dtype=np.float32)
+    padded[:, :3] = light.T
+    rgba = transfer @ padded
+    rgba[:, 3] = 1.0
     np.maximum(rgba, 0.0, out=rgba)
     image.pixels.foreach_set(rgba.ravel())
     image.update()
