@@ -113,7 +113,16 @@ class Relighter:
             if entry.use and entry.kind == "ENVIRONMENT" and environment_image(entry, settings) is None:
                 self._report_once(f"PRT: SH light {entry.name!r} has no readable image (missing file?); "
                                   f"it does not shine")
-        totals = self._light_cache.totals(scene_lights(settings), orders, settings.prt_display.window)
+        self._write_colours(receivers, self._light_cache.totals(scene_lights(settings), orders,
+                                                                 settings.prt_display.window))
+
+    def shade_all(self, scene, totals: dict):
+        """Shades every baked mesh of the scene under the given light ({order: (3, order²)}), whatever its SH
+        lights: validation shows the light it gives Cycles."""
+        self._write_colours(list(self._receivers(scene)), totals)
+
+    def _write_colours(self, receivers, totals):
+        """The colours of each mesh whose light or bake changed."""
         for ob, (transfer, corner_points) in receivers:
             light = totals[math.isqrt(transfer.shape[-1])]
             state = (_bake_key(ob.data), light.tobytes())
