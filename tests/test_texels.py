@@ -67,7 +67,8 @@ def test_an_unshadowed_texel_bake_is_the_cosine_lobe_everywhere_gutters_included
 
 def test_a_one_quad_floor_per_texel_shows_the_spheres_shadow_as_the_closed_form_says(empty_scene):
     """Where vertex storage has only the quad's four corners (no shadow at all), its texels hold the shadow:
-    T_00 within 4 standard errors (plus 0.2 % for the 64-segment sphere's facets) of the closed form."""
+    T_00 within 0.5 % RMS of the closed form, and each texel within 4 standard errors plus 2 % (a texel whose
+    replicates all missed the far, small ball estimates no error at all)."""
     floor, radius, height = floor_quad(), 0.5, 1.5
     ball(radius, height)
     run_bake(["Floor"], samples=256, storage="texel", resolution=48, uv_map="UVMap")
@@ -79,7 +80,8 @@ def test_a_one_quad_floor_per_texel_shows_the_spheres_shadow_as_the_closed_form_
     error = texel_maps.read_error(floor.data).ravel() * bake.unshadowed_norm(ORDER)
     difference = np.abs(planes[0] - expected)[above_horizon]
     assert above_horizon.sum() > 500
-    assert np.all(difference <= 4 * error[above_horizon] + 0.002 * Y00)
+    assert np.sqrt(np.mean(difference ** 2)) < 0.005 * Y00
+    assert np.all(difference <= 4 * error[above_horizon] + 0.02 * Y00)
     centre = np.argmin(x * x + y * y)
     assert planes[0, centre] == pytest.approx(Y00 * (1 - (radius / height) ** 2), abs=0.01 * Y00)
     assert planes[0, centre] < 0.9 * Y00  # the shadow is there
@@ -150,7 +152,7 @@ def test_auto_stores_a_shadowed_floor_per_texel_and_the_smooth_ball_per_vertex_a
 def test_moving_a_light_reshades_each_texel_with_one_dot_product(empty_scene):
     floor = floor_quad()
     ball()
-    run_bake(["Floor"], storage="texel", resolution=32, uv_map="UVMap")
+    run_bake(["Floor"], samples=256, storage="texel", resolution=32, uv_map="UVMap")
     bpy.ops.prt.light_add(kind="SKY")
     sky = bpy.context.scene.prt_lights[-1]
     bpy.context.scene.prt_display.show_prt = True
@@ -160,8 +162,9 @@ def test_moving_a_light_reshades_each_texel_with_one_dot_product(empty_scene):
     shaded = np.empty(32 * 32 * 4, dtype=np.float32)
     image.pixels.foreach_get(shaded)
     shaded = shaded.reshape(-1, 4)
-    corner = 0  # far from the ball: under a unit sky it shows exactly its albedo's share, 1
-    assert shaded[corner, :3] == pytest.approx([1, 1, 1], abs=0.02)
+    corner = 0  # far from the ball: under a unit sky, 1 less the little the ball blocks
+    seen = sphere_blocked_dc(-2 + 2 / 32, -2 + 2 / 32, 0.5, 1.5) / Y00
+    assert shaded[corner, :3] == pytest.approx([seen] * 3, abs=0.02)
     assert shaded[:, 0].min() < 0.9  # under the ball
     sky.strength = 2.0
     bpy.context.view_layer.update()

@@ -126,9 +126,15 @@ class SceneBake(WrappingJob):
         self.storage_decisions = planned.decisions
         self.notes += planned.decisions
         solved = self.surfaces.all
-        self.job = job.TransferJob([surface.receiver for surface in solved], occluders, settings,
-                                   spec.worker_count(workers), worker_launch(),
-                                   albedo=_albedo_channels([s.albedo for s in solved]) if bouncing else None)
+        albedo = _albedo_channels([s.albedo for s in solved]) if bouncing else None
+
+        def transfer_job(receivers):
+            return job.TransferJob(receivers, occluders, settings, spec.worker_count(workers), worker_launch(),
+                                   albedo=albedo)
+        # Texel receivers are baked lattice by lattice, coarse to fine; the first job is the one the checks size.
+        self.levels = texel_bake.refining_job([surface.receiver for surface in solved], solved, settings,
+                                              transfer_job)
+        self.job = self.levels.first
         self.summary = None
 
     def _bouncing_surfaces(self, context, depsgraph, receiver_names):
@@ -143,8 +149,8 @@ class SceneBake(WrappingJob):
                 self.notes.append(f"{problem}; it casts shadows but reflects no light")
         return found
 
-    def inner(self) -> job.TransferJob:
-        return self.job
+    def inner(self):
+        return self.levels
 
     def outcome(self) -> job.Summary:
         """Stores the bake, once, and returns its summary."""
@@ -152,8 +158,8 @@ class SceneBake(WrappingJob):
 
     def store(self) -> job.Summary:
         """Writes every receiver's transfer (replacing older bakes) and returns the summary."""
-        results = self.job.results()[: len(self.surfaces.receivers)]  # bouncers are not stored
-        self.summary = self.job.summary(results)
+        results = self.levels.results()[: len(self.surfaces.receivers)]  # bouncers are not stored
+        self.summary = self.levels.summary(results)
         self._count_vertices()
         self.subsurface_objects = []
         for ob, surface, result in zip(self.objects, self.surfaces.receivers, results):

@@ -12,7 +12,7 @@ from dataclasses import dataclass, field, fields
 
 import numpy as np
 
-from ..core import bake, checks as core_checks, job, texel_choice, texels
+from ..core import bake, checks as core_checks, job, texel_choice, texel_refine, texels
 from ..core.errors import InputError
 from . import storage, texel_maps
 from .mesh_arrays import mesh_triangles
@@ -251,6 +251,17 @@ def _check_memory(surfaces, order):
     if available is not None and needed > available:
         raise InputError(f"the texel maps need about {core_checks.format_bytes(needed)}, more than the "
                          f"{core_checks.format_bytes(available)} available; choose lower resolutions")
+
+
+def refining_job(receivers, surfaces, settings: bake.BakeSettings, transfer_job) -> texel_refine.RefiningJob:
+    """The bake's job: the receivers in order, the texel ones lattice by lattice (core.texel_refine) to the bake's
+    target error (or Auto's, without one)."""
+    grids = {position: texel_refine.TexelGrid(surface.receiver, surface.layout.texels % surface.layout.width,
+                                              surface.layout.texels // surface.layout.width, surface.layout.width,
+                                              surface.layout.height)
+             for position, surface in enumerate(surfaces) if isinstance(surface, TexelSurface)}
+    return texel_refine.RefiningJob(receivers, grids, settings, settings.target_error or texel_choice.AUTO_TARGET,
+                                    transfer_job)
 
 
 def write(ob, surface: TexelSurface, result, extra: dict, settings: bake.BakeSettings):

@@ -275,8 +275,10 @@ class TransferJob(Job):
                                       self._rays[index], self._skipped[index]))
         return out
 
-    def summary(self, results: list[ReceiverResult]) -> Summary:
-        elapsed = self.progress.elapsed
+    def summary(self, results: list[ReceiverResult], receivers=None, elapsed: float | None = None) -> Summary:
+        """receivers, elapsed: others than this job's (a texel bake's refinement runs several jobs)."""
+        receivers = receivers or self.receivers
+        elapsed = self.progress.elapsed if elapsed is None else elapsed
         rel = np.concatenate([r.rel_error for r in results]) if results else np.zeros(0)
         rays = int(sum(int(r.rays.sum()) for r in results))
         per_object = {
@@ -287,7 +289,7 @@ class TransferJob(Job):
                 "est_rms_rel_error": rms(result.rel_error),
                 "est_max_rel_error": float(result.rel_error.max(initial=0.0)),
             }
-            for receiver, result in zip(self.receivers, results)
+            for receiver, result in zip(receivers, results)
         }
         return Summary(
             objects=len(results), vertices=int(len(rel)), points=int(len(rel)), order=self.settings.order,

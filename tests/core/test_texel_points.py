@@ -92,3 +92,71 @@ def test_interpolation_error_is_zero_for_linear_transfer_and_takes_noise_out():
     measured = texel_choice.interpolation_error(noisy + 0.1, np.full(500, noise), corners, np.zeros((500, 3)),
                                                 weights, 1.0)
     assert measured.rms == pytest.approx(np.linalg.norm(offset - linear, axis=1).mean(), rel=0.05)
+
+
+# -- refinement (core.texel_refine) -------------------------------------------------------------------------------
+from prt_addon.core import bake, texel_refine  # noqa: E402
+from prt_addon.core.job import ReceiverResult  # noqa: E402
+from prt_addon.core.progress import Progress  # noqa: E402
+
+
+class ExactJob:
+    """Stands in for a TransferJob: every point's transfer is `field(position)`, exact (no noise, no rays)."""
+
+    def __init__(self, receivers, field):
+        self.receivers, self.field, self.progress = receivers, field, Progress("test")
+
+    def step(self, budget_s):
+        return True
+
+    def results(self):
+        return [ReceiverResult(self.field(r.positions), np.zeros(len(r.positions)), np.zeros(len(r.positions)),
+                               np.ones(len(r.positions), dtype=np.int64), np.zeros(len(r.positions), dtype=bool))
+                for r in self.receivers]
+
+
+def floor_grid(side, gap_after=None):
+    """Every texel of a side × side map on a unit floor; past column `gap_after` the surface jumps 1 m away."""
+    y, x = np.divmod(np.arange(side * side), side)
+    positions = np.stack([(x + 0.5) / side, (y + 0.5) / side, np.zeros(side * side)], axis=1)
+    if gap_after is not None:
+        positions[x > gap_after, 0] += 1.0
+    normals = np.tile([0.0, 0.0, 1.0], (side * side, 1))
+    receiver = bake.Receiver("Floor", positions, normals, 1, np.zeros_like(positions))
+    return texel_refine.TexelGrid(receiver, x, y, side, side)
+
+
+def refine(grid, field, target=0.01):
+    settings = bake.BakeSettings(order=1)
+    refining = texel_refine.RefiningJob([grid.receiver], {0: grid}, settings, target,
+                                        lambda receivers: ExactJob(receivers, field))
+    while not refining.step(0.1):
+        pass
+    return refining
+
+
+def test_a_linear_field_is_baked_on_the_coarsest_lattice_and_its_borders_and_interpolated_elsewhere():
+    grid = floor_grid(128)  # strides 4, 2, 1
+    linear = lambda p: (0.3 + 0.2 * p[:, 0] + 0.1 * p[:, 1])[:, None]  # noqa: E731
+    refining = refine(grid, linear)
+    result = refining.results()[0]
+    np.testing.assert_allclose(result.transfer, linear(grid.receiver.positions), rtol=1e-6)
+    assert refining.strides == [4, 2, 1]
+    baked = sum(refining.baked.values())
+    # the coarsest lattice (every 4th), then the last row and column of each finer lattice, whose cells would
+    # reach past the map: 126 on the lattice of 2, 127 on every texel
+    assert baked == 32 * 32 + (2 * 64 - 1) + (2 * 128 - 1)
+    assert sum(refining.interpolated.values()) == 128 * 128 - baked
+
+
+def test_a_shadow_edge_is_baked_texel_by_texel_and_a_gap_is_never_interpolated_across():
+    grid = floor_grid(64)  # strides 2, 1
+    step = lambda p: np.where(p[:, 0] < 0.3, 0.1, 0.3)[:, None]  # noqa: E731
+    result = refine(grid, step).results()[0]
+    np.testing.assert_allclose(result.transfer, step(grid.receiver.positions), atol=1e-7)
+    gapped = floor_grid(64, gap_after=30)
+    smooth = lambda p: (0.3 + 0.01 * p[:, 0])[:, None]  # noqa: E731 (0.01 m⁻¹: the gap alone is what differs)
+    refined = refine(gapped, smooth)
+    np.testing.assert_allclose(refined.results()[0].transfer, smooth(gapped.receiver.positions), rtol=1e-6)
+    state = refined.states[0]
+    assert not state.interpolated[gapped.x == 31].any()  # its cell's corners lie on both sides of the gap
