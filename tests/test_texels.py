@@ -267,3 +267,15 @@ def test_validate_image_sees_the_shadow_texels_hold_and_vertices_miss(empty_scen
                for slot in ob.material_slots)
     heatmap = bpy.data.images.load(str(tmp_path / "vertex.png"))
     assert tuple(heatmap.size) == (64, 48)
+
+
+def test_an_objects_own_storage_choice_is_baked_and_changing_it_makes_the_bake_stale(empty_scene):
+    from prt_addon.blender.fingerprint import stale_receivers
+    floor = floor_quad()
+    floor.prt_storage, floor.prt_resolution, floor.prt_uv_map = "texel", 16, "UVMap"
+    settings = bake.BakeSettings(order=ORDER, mode="unshadowed")
+    SceneBake(bpy.context, settings, ["Floor"]).run()
+    assert floor.data[storage.METADATA_KEY]["width"] == 16
+    assert stale_receivers(bpy.context, settings, ["Floor"]) == {"Floor": []}
+    floor.prt_resolution = 32
+    assert stale_receivers(bpy.context, settings, ["Floor"]) == {"Floor": ["settings changed"]}

@@ -107,7 +107,7 @@ class SceneBake(WrappingJob):
         if not receivers:
             raise InputError("nothing to bake: " + ("; ".join(self.problems) or "no mesh objects"))
         # Taken now, from the scene as it is baked: objects may move while a modal bake runs.
-        self.fingerprints = fingerprint.fingerprints(depsgraph, self.objects, settings)
+        self.fingerprints = fingerprint.fingerprints(depsgraph, self.objects, settings, storage_options)
         # Every visible mesh reflects light onto the receivers in an interreflected bake, so its transfer is solved
         # too.
         bouncers = self._bouncing_surfaces(context, depsgraph, {ob.name for ob in self.objects}) if bouncing else []
@@ -170,6 +170,8 @@ class SceneBake(WrappingJob):
             if material is not None:
                 result.transfer = with_subsurface(surface, result.transfer, *material)
                 self.subsurface_objects.append(ob.name)
+        if self.levels.states:
+            self.storage_decisions.append(f"texel lattices: {self.levels.lattice_line()}")
         for ob, surface, result in zip(self.objects, self.surfaces.receivers, results):
             extra = {"time_s": self.summary.time_s, fingerprint.FINGERPRINT_KEY: self.fingerprints[ob.name]}
             if self.summary.bounces is not None:
