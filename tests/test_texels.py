@@ -279,3 +279,19 @@ def test_an_objects_own_storage_choice_is_baked_and_changing_it_makes_the_bake_s
     assert stale_receivers(bpy.context, settings, ["Floor"]) == {"Floor": []}
     floor.prt_resolution = 32
     assert stale_receivers(bpy.context, settings, ["Floor"]) == {"Floor": ["settings changed"]}
+
+
+def test_prt_bake_stores_per_texel_from_the_command_line(empty_scene, tmp_path):
+    floor_quad()
+    path = tmp_path / "floor.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(path))
+    out = run_cli("bake", path, "--mode", "unshadowed", "--storage", "texel", "--resolution", "16", "--uv-map",
+                  "UVMap", "--report", tmp_path / "report.json")
+    assert out.returncode == 0, out.stderr
+    report = json.loads((tmp_path / "report.json").read_text())
+    assert report["storage"] == ["'Floor': Storage Texel; 16 × 16 texels in UV map 'UVMap', 256 covered",
+                                 "texel lattices: every 1: 256 baked, 0 interpolated"]
+    bpy.ops.wm.open_mainfile(filepath=str(path))
+    assert bpy.data.objects["Floor"].data[storage.METADATA_KEY]["width"] == 16
+    refused = run_cli("bake", path, "--storage", "texel", "--resolution", "16", "--no-new-uv-map", "--uv-map", "")
+    assert refused.returncode == 1 and "choose one of its UV maps ('UVMap')" in refused.stderr
