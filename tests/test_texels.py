@@ -295,3 +295,13 @@ def test_prt_bake_stores_per_texel_from_the_command_line(empty_scene, tmp_path):
     assert bpy.data.objects["Floor"].data[storage.METADATA_KEY]["width"] == 16
     refused = run_cli("bake", path, "--storage", "texel", "--resolution", "16", "--no-new-uv-map", "--uv-map", "")
     assert refused.returncode == 1 and "choose one of its UV maps ('UVMap')" in refused.stderr
+
+
+def test_per_vertex_validation_names_texel_bakes(empty_scene, prt):
+    """(The installed add-on's InputError is its own class, hence Exception.)"""
+    floor_quad()
+    ball()
+    run_bake(["Floor"], mode="unshadowed", storage="texel", resolution=16, uv_map="UVMap")
+    with pytest.raises(Exception, match=r"nothing to validate: mesh '.*' is baked per texel, not per vertex: "
+                                         r"compare it with `prt validate --image`"):
+        prt.validation.Validation(bpy.context, 8, 2, ["Floor"])

@@ -24,7 +24,7 @@ import numpy as np
 
 from ..core import bake
 from ..core.statistics import rms
-from ..core.errors import StaleBake
+from ..core.errors import InputError, StaleBake
 from .texel_maps import remove_maps
 
 ATTRIBUTE_PREFIX = "_prt_"
@@ -135,6 +135,9 @@ def read_transfer(mesh) -> tuple[np.ndarray, dict]:
     """(P, n²) grey or (P, 3, n²) coloured float32 transfer per shading point (the vertices, unless the bake is
     per corner: see corner_points) and the metadata; raises StaleBake when it no longer fits the mesh."""
     meta = _metadata(mesh)
+    if meta.get("storage") == "TEXEL":
+        raise InputError(f"mesh {mesh.name!r} is baked per texel, not per vertex: compare it with "
+                         f"`prt validate --image`")
     order, letters = meta["order"], CHANNEL_LETTERS[meta.get("channels", 1)]
     corner_points = corner_points_of(mesh)
     planes = [_read_plane(mesh, order, letter, corner_points, meta.get("points")) for letter in letters]
