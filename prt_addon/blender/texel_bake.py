@@ -198,7 +198,8 @@ class _Candidate:
             resolution = texels.resolution_for_texel_size(world_area, uv_area, options.texel_size)
         else:
             spacing = np.sqrt(2.0 * world_area / max(1, len(self.geometry.areas)))
-            resolution = texels.resolution_for_target(spacing, self.probe.rms, target, world_area, uv_area)
+            resolution = max(texels.resolution_for_target(spacing, self.probe.rms, target, world_area, uv_area),
+                             texels.resolution_for_triangles(len(self.geometry.areas), uv_area))
         _fits_in_memory(self.ob.name, resolution, order)
         return resolution
 

@@ -2,9 +2,11 @@
 (world position, interpolated corner normal, a tangent step into its own triangle), gutters dilated around the UV
 islands, and the resolution and memory a texel bake needs.
 
-A texel is covered when its centre lies in a UV triangle (edges included). A centre strictly inside two
-triangles is an overlap: two surfaces would share one texel. Texels outside every triangle get values only
-from the gutter dilation, so bilinear filtering at an island's border reads what the island holds.
+A texel is covered when its centre lies in a UV triangle (edges included), or, at an island's border, when its
+square reaches into one (its centre less than half a texel's diagonal away): such a border texel is baked at the
+triangle's point nearest its centre, so bilinear filtering between it and the texels inside reads values of the
+surface, never guesses. A centre strictly inside two triangles is an overlap: two surfaces would share one texel.
+Texels farther out get values only from the gutter dilation.
 """
 
 from dataclasses import dataclass
@@ -16,11 +18,13 @@ CANDIDATES_AT_ONCE = 1 << 21
 # A centre this close to an edge (in barycentric weight) is on it: it belongs to both triangles without being an
 # overlap, so shared edges never count as overlaps.
 ON_EDGE = 1e-7
+BORDER = np.sqrt(0.5) - 1e-6  # a texel whose centre is nearer a triangle than this touches it (a corner alone: not)
 GUTTER_TEXELS = 4  # texels dilated around each island: bilinear filtering and a mip level or two see no seam
 # PRT's own lightmap UV map leaves this many texels (at the resolution it is packed for) on each side of each face's
 # box: a gap of 3 between islands, so bilinear filtering at an island's border reads only its own gutter.
 PACK_MARGIN_TEXELS = 1.5
 SMALLEST_RESOLUTION = 16
+MIN_TEXELS_PER_TRIANGLE = 16  # a resolution from the target error gives each triangle at least this many
 LARGEST_RESOLUTION = 8192
 # What one texel costs while baking (position, normal, inward step, transfer float64 and float32 per coefficient,
 # error, rays, flags, layout) and stored (RGBA float32 per 4 coefficients and the error, the shaded image).
@@ -34,8 +38,8 @@ class TexelLayout:
     width: int
     height: int
     texels: np.ndarray       # (N,) row-major index y·width + x of each covered texel
-    triangles: np.ndarray    # (N,) the triangle its centre lies in
-    barycentric: np.ndarray  # (N, 3) its centre's weights on that triangle's corners
+    triangles: np.ndarray    # (N,) the triangle its centre lies in (or, at a border, is nearest)
+    barycentric: np.ndarray  # (N, 3) the weights of its point (its centre, or the nearest point) on the corners
     overlapping: int         # covered texels whose centre lies strictly inside more than one triangle
     zero_area: np.ndarray    # (T,) bool: triangles with no area in UV space (they get no texels)
 
@@ -49,22 +53,21 @@ class TexelLayout:
 
 
 def rasterise(uvs: np.ndarray, width: int, height: int) -> TexelLayout:
-    """uvs (T, 3, 2) per triangle corner → the texels whose centres the triangles cover. A texel in several
-    triangles (a shared edge, or an overlap) goes to the one it lies deepest in."""
+    """uvs (T, 3, 2) per triangle corner → the texels the triangles cover. A texel in several triangles (a shared
+    edge, or an overlap) goes to the one it lies deepest in; a border texel to the nearest triangle."""
     pixel = uvs * np.array([width, height], dtype=np.float64) - 0.5  # texel centres at whole numbers
     a, b, c = pixel[:, 0], pixel[:, 1], pixel[:, 2]
     doubled_area = _cross(b - a, c - a)
     zero_area = np.abs(doubled_area) <= 1e-12 * max(width, height) ** 2
-    low = np.maximum(np.ceil(pixel.min(axis=1) - ON_EDGE), 0).astype(np.int64)
-    high = np.minimum(np.floor(pixel.max(axis=1) + ON_EDGE), [width - 1, height - 1]).astype(np.int64)
+    low = np.maximum(np.ceil(pixel.min(axis=1) - BORDER), 0).astype(np.int64)
+    high = np.minimum(np.floor(pixel.max(axis=1) + BORDER), [width - 1, height - 1]).astype(np.int64)
     spans = np.maximum(high - low + 1, 0)
     counts = np.where(zero_area, 0, spans[:, 0] * spans[:, 1])
     found = [_covered(pixel, doubled_area, low, spans, part, width)
              for part in _batches(counts, CANDIDATES_AT_ONCE)]
-    texel, triangle, weights = (np.concatenate(column) for column in zip(*found)) if found else (
-        np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros((0, 3)))
-    depth = weights.min(axis=1)
-    order = np.lexsort((-depth, texel))  # per texel, deepest first
+    texel, triangle, weights, depth = (np.concatenate(column) for column in zip(*found)) if found else (
+        np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros((0, 3)), np.zeros(0))
+    order = np.lexsort((-depth, texel))  # per texel, deepest first (border texels, nearest first, after)
     texel, triangle, weights, depth = texel[order], triangle[order], weights[order], depth[order]
     first = np.r_[True, texel[1:] != texel[:-1]]
     strictly = depth > ON_EDGE
@@ -74,8 +77,9 @@ def rasterise(uvs: np.ndarray, width: int, height: int) -> TexelLayout:
 
 
 def _covered(pixel, doubled_area, low, spans, triangles, width):
-    """(texel, triangle, barycentric) for the candidate centres in the bounding boxes of `triangles` that lie in
-    them (edges included)."""
+    """(texel, triangle, barycentric, depth) for the candidate centres in the bounding boxes of `triangles` (grown
+    by BORDER) that lie in them, depth their smallest weight (≥ 0), or that are within BORDER of them, with the
+    nearest point's weights and depth −1 − their distance."""
     counts = spans[triangles, 0] * spans[triangles, 1]
     owner = np.repeat(triangles, counts)
     local = np.arange(counts.sum()) - np.repeat(np.cumsum(counts) - counts, counts)
@@ -86,8 +90,31 @@ def _covered(pixel, doubled_area, low, spans, triangles, width):
     area = doubled_area[owner]
     weights = np.stack([_cross(b - point, c - point), _cross(c - point, a - point), _cross(a - point, b - point)],
                        axis=1) / area[:, None]
-    inside = (weights >= -ON_EDGE).all(axis=1)
-    return y[inside] * width + x[inside], owner[inside], weights[inside]
+    depth = weights.min(axis=1)
+    inside = depth >= -ON_EDGE
+    distance, nearest = _nearest_on_edges(point, a, b, c)
+    border = ~inside & (distance < BORDER)
+    weights[border] = nearest[border]
+    depth[border] = -1.0 - distance[border]
+    kept = inside | border
+    return y[kept] * width + x[kept], owner[kept], weights[kept], depth[kept]
+
+
+def _nearest_on_edges(point, a, b, c):
+    """(distance (M,), barycentric weights (M, 3)) of each point's nearest point on its triangle's edges."""
+    best = np.full(len(point), np.inf)
+    weights = np.zeros((len(point), 3))
+    for start, end, (i, j) in ((a, b, (0, 1)), (b, c, (1, 2)), (c, a, (2, 0))):
+        edge = end - start
+        t = np.clip(np.einsum("md,md->m", point - start, edge) / np.maximum(np.einsum("md,md->m", edge, edge),
+                                                                           1e-300), 0.0, 1.0)
+        distance = np.linalg.norm(start + t[:, None] * edge - point, axis=1)
+        closer = distance < best
+        best[closer] = distance[closer]
+        weights[closer] = 0.0
+        weights[closer, i] = 1.0 - t[closer]
+        weights[closer, j] = t[closer]
+    return best, weights
 
 
 def _batches(counts, limit):
@@ -190,6 +217,12 @@ def resolution_for_target(spacing: float, error: float, target: float, world_are
     if error <= target or spacing <= 0:
         return resolution_for_texel_size(world_area, uv_area, max(spacing, 1e-12))
     return resolution_for_texel_size(world_area, uv_area, spacing * (target / error) ** 2)
+
+
+def resolution_for_triangles(triangles: int, uv_area: float) -> int:
+    """The resolution at which the triangles get MIN_TEXELS_PER_TRIANGLE texels each on average: a per-face
+    lightmap's islands then hold texels inside, not only borders."""
+    return clamp_resolution(int(np.ceil(np.sqrt(MIN_TEXELS_PER_TRIANGLE * triangles / max(uv_area, 1e-12)))))
 
 
 def clamp_resolution(side: int) -> int:

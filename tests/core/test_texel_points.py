@@ -38,12 +38,24 @@ def test_zero_area_uv_triangles_are_found_and_get_no_texels():
     assert layout.zero_area.tolist() == [False, True] and (layout.triangles == 0).all()
 
 
+def test_border_texels_are_baked_at_the_nearest_point_of_their_island():
+    """An island over the lower-left quarter of a 16 × 16 map: centres 0-7 lie in it, and the texels of column
+    and row 8, whose squares reach into it, are placed on its edge; texel (8, 8) touches it at a corner only."""
+    layout = texels.rasterise(SQUARE * 0.5, 16, 16)
+    x, y = layout.texels % 16, layout.texels // 16
+    assert len(layout.texels) == 80 and x.max() == 8 and y.max() == 8 and 8 * 16 + 8 not in layout.texels
+    assert layout.overlapping == 0
+    points = np.einsum("nc,ncd->nd", layout.barycentric, SQUARE[layout.triangles] * 0.5)
+    expected = np.stack([np.minimum((x + 0.5) / 16, 0.5), np.minimum((y + 0.5) / 16, 0.5)], axis=1)
+    np.testing.assert_allclose(points, expected, atol=1e-12)
+
+
 def test_gutters_take_their_islands_values_and_leave_the_islands_alone():
-    layout = texels.rasterise(SQUARE * 0.5, 16, 16)  # an island in the lower-left quarter
+    layout = texels.rasterise(SQUARE * 0.5, 16, 16)  # an island in the lower-left quarter, texels 0-8
     values = np.full((len(layout.texels), 1), 3.0)
     image = texels.to_image(layout, values, gutter=2)
-    assert np.all(image[:8, :8] == 3.0)
-    assert np.all(image[:10, :10] == 3.0) and np.all(image[11:, :] == 0.0) and np.all(image[:, 11:] == 0.0)
+    assert np.all(image[:9, :9] == 3.0) and image[5, 10] == 3.0 and image[10, 5] == 3.0  # 2 texels out
+    assert np.all(image[11:, :] == 0.0) and np.all(image[:, 11:] == 0.0)
     assert np.array_equal(texels.from_image(layout, image), values)
 
 
