@@ -119,7 +119,7 @@ class SceneBake(WrappingJob):
                 self.notes.append("no visible mesh besides the receivers casts shadows; "
                                   "each receiver is shadowed by the receivers only")
         planned = texel_bake.plan(self.objects, receivers, occluders, settings, storage_options or {}, depsgraph,
-                                  self.notes, self.problems, spec.worker_count(workers))
+                                  self.problems)
         if not planned.objects:
             raise InputError("nothing to bake: " + "; ".join(self.problems))
         self.objects, self.surfaces.receivers = planned.objects, planned.surfaces

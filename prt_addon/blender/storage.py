@@ -25,7 +25,7 @@ import numpy as np
 from ..core import bake
 from ..core.statistics import rms
 from ..core.errors import InputError, StaleBake
-from .texel_maps import remove_maps
+from . import texel_maps  # (texel_maps imports this module too: its names are read at call time)
 
 ATTRIBUTE_PREFIX = "_prt_"
 ERROR_ATTRIBUTE = "_prt_error"
@@ -103,7 +103,7 @@ def write_metadata(mesh, result, settings: bake.BakeSettings, domain: str, split
 
 
 def remove_transfer(mesh):
-    remove_maps(mesh)
+    texel_maps.remove_maps(mesh)
     for name in [a.name for a in mesh.attributes if a.name.startswith(ATTRIBUTE_PREFIX)]:
         mesh.attributes.remove(mesh.attributes[name])
     if METADATA_KEY in mesh:

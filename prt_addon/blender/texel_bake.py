@@ -59,8 +59,8 @@ class Planned:
     decisions: list = field(default_factory=list)  # one sentence per texel or Auto object: what and why
 
 
-def plan(objects, surfaces, occluders, settings: bake.BakeSettings, overrides: dict, depsgraph, notes, problems,
-         workers: int = 1) -> Planned:
+def plan(objects, surfaces, occluders, settings: bake.BakeSettings, overrides: dict, depsgraph,
+         problems) -> Planned:
     """Each receiver's storage: its vertex surface kept, or a TexelSurface. An object whose texels cannot be
     baked is dropped with its reason in `problems` (nothing of its earlier bake is touched); what Auto chose, and
     why, goes to the decisions."""
@@ -81,7 +81,7 @@ def plan(objects, surfaces, occluders, settings: bake.BakeSettings, overrides: d
             candidate = _Candidate(ob, surface, options, None, failed=True)
         candidates.append(candidate)
     probed = [c for c in candidates if not c.failed and c.needs_probe]
-    _probe(probed, occluders, settings, workers)
+    _probe(probed, occluders, settings)
     target = settings.target_error or texel_choice.AUTO_TARGET
     result = Planned([], [])
     decided = {c.ob.name: c for c in candidates}
@@ -204,7 +204,7 @@ class _Candidate:
         return resolution
 
 
-def _probe(candidates, occluders, settings: bake.BakeSettings, workers: int):
+def _probe(candidates, occluders, settings: bake.BakeSettings):
     """Bakes each candidate's probe points and the corners of their triangles in one job, and measures the
     interpolation error (core.texel_choice)."""
     if not candidates:

@@ -19,6 +19,7 @@ import numpy as np
 
 from ..core import texels
 from ..core.errors import InputError, StaleBake
+from . import storage  # (storage imports this module too: its names are read at call time)
 
 PRT_UV_MAP = "PRT Lightmap"
 STORAGE_KEY = "storage"  # in the metadata: "TEXEL"; vertex bakes have none (or "VERTEX")
@@ -78,7 +79,7 @@ def triangle_uvs(mesh, uv_map: str, loop_triangles: np.ndarray) -> np.ndarray:
 
 # -- the stored maps --------------------------------------------------------------------------------------------
 def is_texel_bake(mesh) -> bool:
-    meta = mesh.get("prt")
+    meta = mesh.get(storage.METADATA_KEY)
     return meta is not None and meta.get(STORAGE_KEY) == TEXEL_STORAGE
 
 
@@ -121,7 +122,7 @@ def _packed_image(name, mesh, pixels: np.ndarray):
 def read_planes(mesh) -> tuple[np.ndarray, dict]:
     """(n², height·width) float32 coefficient planes of every texel (gutters included) and the metadata; the
     shading reads planes, one contiguous row per coefficient."""
-    meta = mesh["prt"].to_dict()
+    meta = mesh[storage.METADATA_KEY].to_dict()
     order, width, height = meta["order"], meta["width"], meta["height"]
     planes = np.empty((4 * len(meta["images"]), height * width), dtype=np.float32)
     pixels = np.empty(height * width * 4, dtype=np.float32)
@@ -136,7 +137,7 @@ def read_planes(mesh) -> tuple[np.ndarray, dict]:
 
 def read_error(mesh) -> np.ndarray:
     """(height, width) the estimated relative error image."""
-    meta = mesh["prt"]
+    meta = mesh[storage.METADATA_KEY]
     image = bpy.data.images[meta["error_image"]]
     pixels = np.empty(meta["width"] * meta["height"] * 4, dtype=np.float32)
     image.pixels.foreach_get(pixels)
@@ -146,7 +147,7 @@ def read_error(mesh) -> np.ndarray:
 def save_exr(mesh, stem: str) -> list[str]:
     """Writes the mesh's maps as 32-bit OpenEXR files `<stem>_t00.exr`, ..., `<stem>_error.exr`; returns their
     paths. The packed images stay as they are."""
-    meta = mesh["prt"]
+    meta = mesh[storage.METADATA_KEY]
     names = list(meta["images"]) + [meta["error_image"]]
     paths = [f"{stem}_t{j:02d}.exr" for j in range(len(meta["images"]))] + [f"{stem}_error.exr"]
     for name, path in zip(names, paths):
@@ -164,7 +165,7 @@ def remove_maps(mesh):
 def shaded_image(mesh):
     """The float image the relighting writes and the display material shows (made once per mesh and size; not
     packed: it is shaded again whenever the file is opened)."""
-    meta = mesh["prt"]
+    meta = mesh[storage.METADATA_KEY]
     name = f"_prt_{mesh.name}{SHADED_SUFFIX}"
     image = bpy.data.images.get(name)
     if image is not None and tuple(image.size) != (meta["width"], meta["height"]):
@@ -194,4 +195,4 @@ def write_shaded(mesh, transfer: np.ndarray, light: np.ndarray):
 
 def display_source(mesh) -> tuple[str, str]:
     """(shaded image name, UV map) for the display material of a texel bake."""
-    return shaded_image(mesh).name, mesh["prt"]["uv_map"]
+    return shaded_image(mesh).name, mesh[storage.METADATA_KEY]["uv_map"]
