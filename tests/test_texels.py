@@ -229,10 +229,14 @@ def test_a_resolution_beyond_memory_is_refused_before_any_ray(empty_scene, monke
                   storage_options={"storage": "texel", "resolution": 8192, "uv_map": "UVMap"})
 
 
-def test_interreflected_texel_bakes_say_what_is_missing(empty_scene):
-    floor_quad()
-    with pytest.raises(InputError, match="interreflected texels would gather bounced light through each hit's "
-                                         "lightmap UV, which is not built yet"):
+def test_interreflected_texel_bakes_with_coloured_albedo_say_what_is_missing(empty_scene):
+    floor = floor_quad()
+    red = bpy.data.materials.new("Red")
+    red.use_nodes = True
+    red.node_tree.nodes["Principled BSDF"].inputs["Base Color"].default_value = (0.8, 0.1, 0.1, 1.0)
+    floor.data.materials.append(red)
+    with pytest.raises(InputError, match="'Floor': texel maps hold one channel, and coloured albedo makes "
+                                         "interreflected transfer RGB"):
         run_bake(["Floor"], mode="interreflected", storage="texel", resolution=16, uv_map="UVMap")
 
 
@@ -305,3 +309,39 @@ def test_per_vertex_validation_names_texel_bakes(empty_scene, prt):
     with pytest.raises(Exception, match=r"nothing to validate: mesh '.*' is baked per texel, not per vertex: "
                                          r"compare it with `prt validate --image`"):
         prt.validation.Validation(bpy.context, 8, 2, ["Floor"])
+
+
+def white_material():
+    material = bpy.data.materials.new("White")
+    material.use_nodes = True
+    material.node_tree.nodes["Principled BSDF"].inputs["Base Color"].default_value = (1.0, 1.0, 1.0, 1.0)
+    return material
+
+
+def test_interreflected_texels_gather_the_vertices_bounced_light_and_agree_with_cycles(empty_scene, tmp_path, prt):
+    """A white floor of one quad beside a white wall of one quad: per vertex the floor has four values; per texel
+    it holds the light the wall bounces onto it, which Cycles (with as many bounces) agrees with in the image."""
+    floor = floor_quad()
+    bpy.ops.mesh.primitive_plane_add(size=4, location=(0, 2, 2), rotation=(math.pi / 2, 0, 0))
+    wall = bpy.context.object
+    wall.name = "Wall"
+    white = white_material()
+    for ob in (floor, wall):
+        ob.data.materials.append(white)
+    view = camera(location=(0.0, -6.0, 3.0), rotation=(1.2, 0.0, 0.0))
+    bpy.context.scene.camera = view
+    run_bake(["Floor", "Wall"], mode="shadowed", samples=128, storage="texel", resolution=32, uv_map="UVMap")
+    shadowed, _ = texel_maps.read_planes(floor.data)
+    scene_bake = SceneBake(bpy.context, bake.BakeSettings(order=ORDER, mode="interreflected", samples=128,
+                                                          bounces=2), ["Floor", "Wall"],
+                           storage_options={"storage": "texel", "resolution": 32, "uv_map": "UVMap"})
+    scene_bake.run()
+    bounced, meta = texel_maps.read_planes(floor.data)
+    assert meta["mode"] == "interreflected" and meta["bounces"] == 2
+    x, y = texel_centres(meta)
+    near_wall = y > 1.5
+    gained = (bounced[0] - shadowed[0])[near_wall] / Y00
+    assert gained.mean() > 0.05  # the wall's light, which the shadowed bake has not
+    report = prt.image_validation.validate_image(bpy.context, "Camera", samples=32, resolution=(48, 36))
+    print(f"gained {gained.mean():.3f}; {report.line()}")
+    assert report.comparison.error < 0.03

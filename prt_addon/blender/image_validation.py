@@ -82,6 +82,9 @@ def validate_image(context, camera: str | None = None, samples: int = 64, passes
     notes = [f"{ob.name!r} is baked unshadowed: Cycles shows its shadows" for ob, meta in zip(receivers, metas)
              if meta["mode"] == "unshadowed"]
     bounces = max((meta.get("bounces", 0) or 0 for meta in metas if meta["mode"] == "interreflected"), default=0)
+    if bounces:
+        notes.append("interreflected bakes: Cycles bounces light between white surfaces, the bake between its "
+                     "materials' albedo; the two agree where that albedo is white")
     with tempfile.TemporaryDirectory(prefix="prt_validate_image_") as folder, \
             _render_settings_restored(scene, receivers):
         scene.camera = camera_object

@@ -118,8 +118,9 @@ class SceneBake(WrappingJob):
             if sources <= {ob.name for ob in self.objects}:
                 self.notes.append("no visible mesh besides the receivers casts shadows; "
                                   "each receiver is shadowed by the receivers only")
+        coloured = bouncing and _albedo_channels([s.albedo for s in self.surfaces.all])[0].shape[1] > 1
         planned = texel_bake.plan(self.objects, receivers, occluders, settings, storage_options or {}, depsgraph,
-                                  self.problems)
+                                  self.problems, coloured)
         if not planned.objects:
             raise InputError("nothing to bake: " + "; ".join(self.problems))
         self.objects, self.surfaces.receivers = planned.objects, planned.surfaces
@@ -128,12 +129,11 @@ class SceneBake(WrappingJob):
         solved = self.surfaces.all
         albedo = _albedo_channels([s.albedo for s in solved]) if bouncing else None
 
-        def transfer_job(receivers):
+        def transfer_job(receivers, gather_only=False):
             return job.TransferJob(receivers, occluders, settings, spec.worker_count(workers), worker_launch(),
-                                   albedo=albedo)
+                                   albedo=albedo, gather_only=gather_only)
         # Texel receivers are baked lattice by lattice, coarse to fine; the first job is the one the checks size.
-        self.levels = texel_bake.refining_job([surface.receiver for surface in solved], solved, settings,
-                                              transfer_job)
+        self.levels = texel_bake.refining_job(solved, settings, transfer_job)
         self.job = self.levels.first
         self.summary = None
 

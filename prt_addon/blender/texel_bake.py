@@ -12,7 +12,7 @@ from dataclasses import dataclass, field, fields
 
 import numpy as np
 
-from ..core import bake, checks as core_checks, job, texel_choice, texel_refine, texels
+from ..core import bake, checks as core_checks, job, texel_choice, texel_gather, texel_refine, texels
 from ..core.errors import InputError
 from . import storage, texel_maps
 from .mesh_arrays import mesh_triangles
@@ -47,9 +47,13 @@ class TexelSurface:
     layout: texels.TexelLayout
     uv_map: str
     mesh_surface: object
-    albedo: None = None
     corner_points: None = None
     split_vertices: int = 0
+
+    @property
+    def albedo(self):
+        """Its vertices' albedo: an interreflected bake solves the bounces on them."""
+        return self.mesh_surface.albedo
 
 
 @dataclass
@@ -59,8 +63,8 @@ class Planned:
     decisions: list = field(default_factory=list)  # one sentence per texel or Auto object: what and why
 
 
-def plan(objects, surfaces, occluders, settings: bake.BakeSettings, overrides: dict, depsgraph,
-         problems) -> Planned:
+def plan(objects, surfaces, occluders, settings: bake.BakeSettings, overrides: dict, depsgraph, problems,
+         coloured: bool = False) -> Planned:
     """Each receiver's storage: its vertex surface kept, or a TexelSurface. An object whose texels cannot be
     baked is dropped with its reason in `problems` (nothing of its earlier bake is touched); what Auto chose, and
     why, goes to the decisions."""
@@ -70,10 +74,9 @@ def plan(objects, surfaces, occluders, settings: bake.BakeSettings, overrides: d
         if options.storage == "vertex":
             continue
         try:
-            if settings.mode == "interreflected":
-                raise InputError(f"{ob.name!r}: texel storage bakes unshadowed and shadowed transfer; interreflected "
-                                 f"texels would gather bounced light through each hit's lightmap UV, which is not "
-                                 f"built yet: bake it with Storage Vertex")
+            if settings.mode == "interreflected" and coloured:
+                raise InputError(f"{ob.name!r}: texel maps hold one channel, and coloured albedo makes interreflected "
+                                 f"transfer RGB: bake it with Storage Vertex, or with grey albedo")
             candidate = _Candidate(ob, surface, options, _TriangleGeometry.of(ob, surface, depsgraph))
             candidate.check_uvs(settings.order)
         except InputError as problem:
@@ -254,15 +257,31 @@ def _check_memory(surfaces, order):
                          f"{core_checks.format_bytes(available)} available; choose lower resolutions")
 
 
-def refining_job(receivers, surfaces, settings: bake.BakeSettings, transfer_job) -> texel_refine.RefiningJob:
-    """The bake's job: the receivers in order, the texel ones lattice by lattice (core.texel_refine) to the bake's
-    target error (or Auto's, without one)."""
+def vertex_surface(surface):
+    """The surface an interreflected bake solves the bounces on: a texel receiver's vertices."""
+    return surface.mesh_surface if isinstance(surface, TexelSurface) else surface
+
+
+def refining_job(surfaces, settings: bake.BakeSettings, transfer_job) -> texel_refine.RefiningJob:
+    """The bake's job over the solved surfaces in order, the texel ones lattice by lattice (core.texel_refine) to the
+    bake's target error (or Auto's, without one). transfer_job(receivers, gather_only=False) makes a TransferJob.
+    Interreflected, the vertices of every surface solve the bounces first, then each texel gathers from them
+    (core.texel_gather)."""
     grids = {position: texel_refine.TexelGrid(surface.receiver, surface.layout.texels % surface.layout.width,
                                               surface.layout.texels // surface.layout.width, surface.layout.width,
                                               surface.layout.height)
              for position, surface in enumerate(surfaces) if isinstance(surface, TexelSurface)}
-    return texel_refine.RefiningJob(receivers, grids, settings, settings.target_error or texel_choice.AUTO_TARGET,
-                                    transfer_job)
+    target = settings.target_error or texel_choice.AUTO_TARGET
+    receivers = [surface.receiver for surface in surfaces]
+    if settings.mode != "interreflected" or not grids:
+        return texel_refine.RefiningJob(receivers, grids, settings, target, transfer_job)
+    solve = transfer_job([vertex_surface(surface).receiver for surface in surfaces])
+    albedo = np.concatenate(solve.albedo)
+
+    def gathering_job(texel_receivers):
+        solved = np.concatenate([result.transfer for result in solve.results()])
+        return texel_gather.GatheringJob(transfer_job(texel_receivers, gather_only=True), solved, albedo)
+    return texel_refine.RefiningJob(receivers, grids, settings, target, gathering_job, first_job=solve)
 
 
 def write(ob, surface: TexelSurface, result, extra: dict, settings: bake.BakeSettings):

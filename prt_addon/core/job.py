@@ -73,11 +73,13 @@ class TransferJob(Job):
     """Bakes every receiver. Call step() until it returns True, or run() to do it all at once."""
 
     def __init__(self, receivers, occluders, settings: bake.BakeSettings, workers: int = 1,
-                 worker_command=None, albedo=None, owners=None):
+                 worker_command=None, albedo=None, owners=None, gather_only: bool = False):
         """Interreflected bakes need `albedo`, one (V, C) array per receiver, and occluders whose first
         `solved_vertices` are the receivers' vertices in order (so a hit triangle's corners are solved vertices).
         `owners` fixes which process bakes each chunk when workers run (0: this one, k: worker k); by default
-        spawned workers get chunk_owners' split and forked ones share a queue with this process."""
+        spawned workers get chunk_owners' split and forked ones share a queue with this process.
+        gather_only: an interreflected job whose receivers are not the solved surfaces (texels): it records its
+        rays' hits (`records`) for a gather from a solution made elsewhere, and bounces nothing itself."""
         self.receivers = receivers
         self.occluders = occluders
         self.settings = settings
@@ -89,7 +91,8 @@ class TransferJob(Job):
         self.chunks = bake.chunk_rows(receivers)
         self.total_vertices = sum(len(r.positions) for r in receivers)
         self._vertex_offsets = np.cumsum([0] + [len(r.positions) for r in receivers])
-        if settings.mode == "interreflected" and occluders.solved_vertices != self.total_vertices:
+        self.gather_only = gather_only
+        if settings.mode == "interreflected" and not gather_only and occluders.solved_vertices != self.total_vertices:
             raise ValueError(f"interreflection needs occluders that begin with the {self.total_vertices} solved "
                              f"vertices, not {occluders.solved_vertices}")
         self.done_vertices = 0
@@ -119,7 +122,7 @@ class TransferJob(Job):
         while time.perf_counter() < deadline:
             if next(self._runner, StopIteration) is StopIteration:
                 self.phase_times["rays_s"] = self.progress.elapsed
-                if self.settings.mode == "interreflected":
+                if self.settings.mode == "interreflected" and not self.gather_only:
                     self._bounce()
                 self.finished = True
                 break

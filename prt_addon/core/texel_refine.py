@@ -164,8 +164,12 @@ class RefiningJob(Job):
     one job for the texels that cannot be interpolated. `make_job(receivers)` makes a TransferJob with the bake's
     occluders, settings and workers."""
 
-    def __init__(self, receivers, grids: dict, settings: bake.BakeSettings, target: float, make_job):
-        """receivers: every receiver in the bake's order; grids: {position in that order: TexelGrid}."""
+    def __init__(self, receivers, grids: dict, settings: bake.BakeSettings, target: float, make_job,
+                 first_job=None):
+        """receivers: every receiver in the bake's order; grids: {position in that order: TexelGrid}. first_job: a
+        job that must finish before any texel is baked (an interreflected bake's vertex solve, its results at the
+        texel receivers' positions replaced by theirs); None: the first job bakes the other receivers and every
+        texel receiver's coarsest lattice together."""
         self.strides = lattice_strides(max((max(grid.width, grid.height) for grid in grids.values()), default=1))
         self.receivers = receivers
         self.states = {position: GridState(grid, settings.order) for position, grid in grids.items()}
@@ -175,9 +179,10 @@ class RefiningJob(Job):
         self.make_job = make_job
         self.progress = Progress("PRT bake")
         self._rows = {position: state.lattice(self.strides[0]) for position, state in self.states.items()}
-        self.first = make_job([self.states[position].subset(self._rows[position], self.strides[0])
-                               if position in self.states else receiver
-                               for position, receiver in enumerate(receivers)])
+        self._texels_pending = first_job is not None  # the coarsest lattice still to bake after the first job
+        self.first = first_job or make_job([self.states[position].subset(self._rows[position], self.strides[0])
+                                            if position in self.states else receiver
+                                            for position, receiver in enumerate(receivers)])
         self.jobs = [self.first]
         self._first_results = None
         self._baking = list(self.states)
@@ -205,6 +210,10 @@ class RefiningJob(Job):
         results = current.results()
         if current is self.first:
             self._first_results = results
+            if self._texels_pending and self._baking:
+                self._texels_pending = False
+                self.jobs.append(self._job_for(self._baking))
+                return
             results = [results[position] for position in self._baking]
         for position, result in zip(self._baking, results):
             self.states[position].store(self._rows[position], result)
@@ -213,8 +222,12 @@ class RefiningJob(Job):
         if not self._baking:
             self.finished = True
             return
-        self.jobs.append(self.make_job([self.states[position].subset(self._rows[position], self.strides[self._level])
-                                        for position in self._baking]))
+        self.jobs.append(self._job_for(self._baking))
+
+    def _job_for(self, positions):
+        """The job baking these texel receivers' rows of the current lattice."""
+        return self.make_job([self.states[position].subset(self._rows[position], self.strides[self._level])
+                              for position in positions])
 
     def _next_level(self):
         """Moves to the next lattice that has texels to bake, interpolating what it can on the way."""
