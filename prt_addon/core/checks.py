@@ -188,7 +188,7 @@ def timed_sample(receivers, occluders, settings: bake.BakeSettings, rays: int = 
     count = int(np.clip(rays // settings.samples, *SAMPLE_POINTS))
     chosen = np.unique(np.linspace(0, len(positions) - 1, count).astype(np.int64))
     probe = bake.Receiver("timed sample", positions[chosen], normals[chosen], 0, inward[chosen])
-    work = bake.bake_chunk(caster, probe, 0, len(chosen), replace(settings, target_error=0.0))
+    work = bake.bake_chunk(caster, probe, np.arange(len(chosen)), replace(settings, target_error=0.0))
     cast, start = 0, time.perf_counter()
     while True:
         try:
