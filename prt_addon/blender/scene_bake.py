@@ -76,7 +76,8 @@ class BakeReport:
 
 
 class SceneBake(WrappingJob):
-    """Gathers receivers and occluders, runs a TransferJob, then stores everything at once (its outcome)."""
+    """Gathers receivers and occluders, runs the bake (a TransferJob, and one per finer lattice of texel
+    receivers: core.texel_refine), then stores everything at once (its outcome)."""
 
     def __init__(self, context, settings: bake.BakeSettings, object_names=None, workers: int = 1,
                  storage_options=None):
