@@ -88,11 +88,14 @@ def test_a_one_quad_floor_per_texel_shows_the_spheres_shadow_as_the_closed_form_
 
 
 def test_prt_adds_its_own_lightmap_uv_map_and_leaves_the_users_maps_alone(empty_scene):
+    """The floor's own map tiles a texture twice (beyond 0-1), so it is no lightmap: PRT makes its own."""
     floor = floor_quad(cuts=4)
     ball()
     mesh = floor.data
     before = np.empty(len(mesh.loops) * 2)
     mesh.uv_layers["UVMap"].uv.foreach_get("vector", before)
+    before *= 2.0
+    mesh.uv_layers["UVMap"].uv.foreach_set("vector", before)
     run_bake(["Floor"], storage="texel", resolution=64)
     assert [layer.name for layer in mesh.uv_layers] == ["UVMap", texel_maps.PRT_UV_MAP]
     assert mesh.uv_layers.active.name == "UVMap" and mesh.uv_layers["UVMap"].active_render
@@ -101,6 +104,20 @@ def test_prt_adds_its_own_lightmap_uv_map_and_leaves_the_users_maps_alone(empty_
     np.testing.assert_array_equal(before, after)
     meta = mesh[storage.METADATA_KEY]
     assert meta["uv_map"] == texel_maps.PRT_UV_MAP and 0.5 * 64 * 64 < meta["texels"] < 64 * 64
+
+
+def test_a_render_uv_map_that_serves_as_a_lightmap_is_used_as_it_is(empty_scene):
+    floor = floor_quad(cuts=4)
+    scene_bake = run_bake(["Floor"], mode="unshadowed", storage="texel", resolution=32)
+    assert [layer.name for layer in floor.data.uv_layers] == ["UVMap"]
+    assert scene_bake.storage_decisions[0] == "'Floor': Storage Texel; 32 × 32 texels in UV map 'UVMap', 1024 covered"
+
+
+def test_a_chosen_uv_map_beyond_the_unit_square_is_refused(empty_scene):
+    floor = floor_quad(cuts=2)
+    floor.data.uv_layers["UVMap"].uv[0].vector = (1.5, 0.0)
+    with pytest.raises(InputError, match=r"'Floor': 1 faces reach outside the unit square in UV map 'UVMap'"):
+        run_bake(["Floor"], storage="texel", resolution=16, uv_map="UVMap")
 
 
 def test_the_maps_are_packed_survive_reloading_and_export_as_exr(empty_scene, tmp_path):
@@ -297,8 +314,11 @@ def test_prt_bake_stores_per_texel_from_the_command_line(empty_scene, tmp_path):
                                  "texel lattices: every 1: 256 baked, 0 interpolated"]
     bpy.ops.wm.open_mainfile(filepath=str(path))
     assert bpy.data.objects["Floor"].data[storage.METADATA_KEY]["width"] == 16
-    refused = run_cli("bake", path, "--storage", "texel", "--resolution", "16", "--no-new-uv-map", "--uv-map", "")
-    assert refused.returncode == 1 and "choose one of its UV maps ('UVMap')" in refused.stderr
+    floor = bpy.data.objects["Floor"]
+    floor.data.uv_layers.remove(floor.data.uv_layers["UVMap"])
+    bpy.ops.wm.save_as_mainfile(filepath=str(path))
+    refused = run_cli("bake", path, "--storage", "texel", "--resolution", "16", "--no-new-uv-map")
+    assert refused.returncode == 1 and "choose one of its UV maps (none)" in refused.stderr
 
 
 def test_per_vertex_validation_names_texel_bakes(empty_scene, prt):

@@ -153,14 +153,36 @@ class _Candidate:
         if self.options.resolution:
             _fits_in_memory(self.ob.name, self.options.resolution, order)
         resolution = self.options.resolution or PROVISIONAL_RESOLUTION
-        self.uv_map = texel_maps.lightmap_uv_map(self.ob, self.options.uv_map, self.options.new_uv_map,
-                                                 margin_texels=texels.PACK_MARGIN_TEXELS, resolution=resolution)
+        self.uv_map = self._own_lightmap(resolution) or texel_maps.lightmap_uv_map(
+            self.ob, self.options.uv_map, self.options.new_uv_map, margin_texels=texels.PACK_MARGIN_TEXELS,
+            resolution=resolution)
         self.uvs = texel_maps.triangle_uvs(self.ob.data, self.uv_map, self.geometry.loop_triangles)
         layout = texels.rasterise(self.uvs, resolution, resolution)
         self._check_layout(layout)
 
+    def _own_lightmap(self, resolution) -> str | None:
+        """Without a chosen map or PRT's own, the object's render UV map where it serves as a lightmap as it is
+        (within the unit square, no overlaps, no zero-area faces): one island per piece of surface, rather than
+        Lightmap Pack's one per face, so smooth stretches interpolate and fewer borders show."""
+        mesh = self.ob.data
+        if self.options.uv_map or texel_maps.PRT_UV_MAP in mesh.uv_layers:
+            return None
+        name = next((layer.name for layer in mesh.uv_layers if layer.active_render), None)
+        if name is None:
+            return None
+        uvs = texel_maps.triangle_uvs(mesh, name, self.geometry.loop_triangles)
+        if uvs.min() < 0.0 or uvs.max() > 1.0:
+            return None
+        layout = texels.rasterise(uvs, resolution, resolution)
+        return name if not layout.overlapping and not (layout.zero_area & (self.geometry.areas > 0)).any() else None
+
     def _check_layout(self, layout: texels.TexelLayout):
         name, uv_map = self.ob.name, self.uv_map
+        outside = np.unique(self.geometry.faces[((self.uvs < 0.0) | (self.uvs > 1.0)).any(axis=(1, 2))])
+        if len(outside):
+            raise InputError(f"{name!r}: {len(outside)} faces reach outside the unit square in UV map {uv_map!r}, so "
+                             f"parts of them would get no texels; a lightmap lies within 0-1 (UV > Lightmap Pack, "
+                             f"or let PRT make its own lightmap UV map)")
         flat = self.geometry.faces[layout.zero_area & (self.geometry.areas > 0)]
         if len(flat):
             raise InputError(f"{name!r}: {len(np.unique(flat))} faces have zero area in UV map {uv_map!r}, so they "

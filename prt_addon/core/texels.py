@@ -21,8 +21,8 @@ ON_EDGE = 1e-7
 BORDER = np.sqrt(0.5) - 1e-6  # a texel whose centre is nearer a triangle than this touches it (a corner alone: not)
 GUTTER_TEXELS = 4  # texels dilated around each island: bilinear filtering and a mip level or two see no seam
 # PRT's own lightmap UV map leaves this many texels (at the resolution it is packed for) on each side of each face's
-# box: a gap of 3 between islands, so bilinear filtering at an island's border reads only its own gutter.
-PACK_MARGIN_TEXELS = 1.5
+# box: a gap of 4 between islands, so the gutter texel next to an island is dilated from that island alone.
+PACK_MARGIN_TEXELS = 2.0
 SMALLEST_RESOLUTION = 16
 MIN_TEXELS_PER_TRIANGLE = 16  # a resolution from the target error gives each triangle at least this many
 LARGEST_RESOLUTION = 8192
