@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from conftest import run_cli
+from node_setups import principled_material
 from prt_addon.blender import storage, texel_maps
 from prt_addon.blender.scene_bake import SceneBake
 from prt_addon.core import bake, lobes
@@ -248,10 +249,7 @@ def test_a_resolution_beyond_memory_is_refused_before_any_ray(empty_scene, monke
 
 def test_interreflected_texel_bakes_with_coloured_albedo_say_what_is_missing(empty_scene):
     floor = floor_quad()
-    red = bpy.data.materials.new("Red")
-    red.use_nodes = True
-    red.node_tree.nodes["Principled BSDF"].inputs["Base Color"].default_value = (0.8, 0.1, 0.1, 1.0)
-    floor.data.materials.append(red)
+    floor.data.materials.append(principled_material("Red", (0.8, 0.1, 0.1)))
     with pytest.raises(InputError, match="'Floor': texel maps hold one channel, and coloured albedo makes "
                                          "interreflected transfer RGB"):
         run_bake(["Floor"], mode="interreflected", storage="texel", resolution=16, uv_map="UVMap")
@@ -331,13 +329,6 @@ def test_per_vertex_validation_names_texel_bakes(empty_scene, prt):
         prt.validation.Validation(bpy.context, 8, 2, ["Floor"])
 
 
-def white_material():
-    material = bpy.data.materials.new("White")
-    material.use_nodes = True
-    material.node_tree.nodes["Principled BSDF"].inputs["Base Color"].default_value = (1.0, 1.0, 1.0, 1.0)
-    return material
-
-
 def test_interreflected_texels_gather_the_vertices_bounced_light_and_agree_with_cycles(empty_scene, tmp_path, prt):
     """A white floor of one quad beside a white wall of one quad: per vertex the floor has four values; per texel
     it holds the light the wall bounces onto it, which Cycles (with as many bounces) agrees with in the image."""
@@ -345,7 +336,7 @@ def test_interreflected_texels_gather_the_vertices_bounced_light_and_agree_with_
     bpy.ops.mesh.primitive_plane_add(size=4, location=(0, 2, 2), rotation=(math.pi / 2, 0, 0))
     wall = bpy.context.object
     wall.name = "Wall"
-    white = white_material()
+    white = principled_material("White", (1.0, 1.0, 1.0))
     for ob in (floor, wall):
         ob.data.materials.append(white)
     view = camera(location=(0.0, -6.0, 3.0), rotation=(1.2, 0.0, 0.0))
