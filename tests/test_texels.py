@@ -356,3 +356,21 @@ def test_interreflected_texels_gather_the_vertices_bounced_light_and_agree_with_
     report = prt.image_validation.validate_image(bpy.context, "Camera", samples=32, resolution=(48, 36))
     print(f"gained {gained.mean():.3f}; {report.line()}")
     assert report.comparison.error < 0.03
+
+
+def test_prt_validate_image_from_the_command_line_writes_its_report_and_heatmap(empty_scene, tmp_path):
+    floor_quad()
+    ball(height=0.8)
+    bpy.context.scene.camera = camera()
+    run_bake(["Floor", "Ball"], storage="auto")
+    path = tmp_path / "lit.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(path))
+    out = run_cli("validate", path, "--image", "--camera", "Camera", "--resolution", "24x18", "--samples", "4",
+                  "--heatmap", tmp_path / "error.png", "--report", tmp_path / "image.json")
+    assert out.returncode == 0, out.stderr
+    assert "PRT validate --image: camera 'Camera', 24 × 18, " in out.stdout
+    report = json.loads((tmp_path / "image.json").read_text())
+    assert report["resolution"] == [24, 18] and report["pixels"] > 50 and report["rel_rms_error"] >= 0.0
+    assert (tmp_path / "error.png").exists()
+    wrong = run_cli("validate", path, "--image", "--resolution", "24by18")
+    assert wrong.returncode != 0 and "resolution must be WIDTHxHEIGHT, not '24by18'" in wrong.stderr
