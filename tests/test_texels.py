@@ -374,3 +374,24 @@ def test_prt_validate_image_from_the_command_line_writes_its_report_and_heatmap(
     assert (tmp_path / "error.png").exists()
     wrong = run_cli("validate", path, "--image", "--resolution", "24by18")
     assert wrong.returncode != 0 and "resolution must be WIDTHxHEIGHT, not '24by18'" in wrong.stderr
+
+
+def test_the_storage_panel_and_the_stored_bake_panel_draw_a_texel_object(empty_scene):
+    from conftest import FakeLayout
+
+    class Layout(FakeLayout):
+        def prop_search(self, data, name, search_data, search_name, **kwargs):
+            assert search_name in search_data.bl_rna.properties
+            self.prop(data, name)
+
+        def label(self, text="", **kwargs):
+            self.drawn.append(text)
+
+    floor = floor_quad()
+    run_bake(["Floor"], mode="unshadowed", storage="texel", resolution=16, uv_map="UVMap")
+    bpy.context.view_layer.objects.active = floor
+    drawn = []
+    for panel in (bpy.types.PRT_PT_storage, bpy.types.PRT_PT_bake_info):
+        panel.draw(type("Panel", (), {"layout": Layout(drawn)})(), bpy.context)
+    assert {"prt_storage", "prt_resolution", "prt_texel_size", "prt_uv_map", "prt_new_uv_map"} <= set(drawn)
+    assert "Per texel: 16 × 16 in 'UVMap'" in drawn
