@@ -12,6 +12,12 @@ which follows every write of mesh data and is outside the add-on's control.
 Goals on this machine: ≤ 33 ms at 1 M vertices, and 8 lights ÷ 1 light ≤ 1.1.
 Then, for the orders up to 16 that Order from Lights may pick: the 1 M-vertex grid baked at orders 4, 8 and 16, the
 median time of a 1-light update to the colours written, and the transfer's stored size.
+
+Texel storage (`--texels`, or `--texels-only`): a floor baked per texel at 1024 × 1024, the time from a light change
+to the shaded image written (one product per texel, float32 foreach_set on its pixels), split into the shading and
+the write, against the same goal of 33 ms. Beside it, the handler's cost of the alternative (the display material
+forming the dot product on the GPU from the coefficient maps): setting the summed light's 3 × 16 values on its
+nodes; the GPU's own per-pixel work cannot be timed without a display.
 """
 
 import argparse
@@ -23,12 +29,14 @@ import statistics
 import sys
 import time
 
+import numpy as np
+
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 import bpy  # noqa: E402  (before mathutils, which the core uses)
 
 import prt_addon  # noqa: E402
-from prt_addon.blender import display  # noqa: E402
+from prt_addon.blender import display, texel_maps  # noqa: E402
 from prt_addon.blender.scene_bake import SceneBake  # noqa: E402
 from prt_addon.core import bake  # noqa: E402
 
@@ -123,6 +131,69 @@ def order_costs(steps, clock):
     return costs
 
 
+TEXEL_SIDE = 1024
+
+
+def baked_texel_floor(side=TEXEL_SIDE):
+    """A one-quad floor stored per texel at side × side (unshadowed: every texel covered, no rays)."""
+    bpy.ops.wm.read_homefile(use_empty=True)
+    bpy.ops.mesh.primitive_plane_add(size=2)
+    SceneBake(bpy.context, bake.BakeSettings(order=4, mode="unshadowed"), storage_options={
+        "storage": "texel", "resolution": side, "uv_map": "UVMap"}).run(log=lambda line: None)
+    return bpy.context.object
+
+
+class ShadeClock:
+    """Wraps the texel shading the handler calls, noting when it returns and how long its write took."""
+
+    def __init__(self):
+        self.written_at = None
+        self.write_s = []
+        self._shade = texel_maps.write_shaded
+
+    def __enter__(self):
+        def timed_shade(mesh, transfer, light):
+            image = self._shade(mesh, transfer, light)
+            self.written_at = time.perf_counter()
+            return image
+        texel_maps.write_shaded = timed_shade
+        return self
+
+    def __exit__(self, *exc):
+        texel_maps.write_shaded = self._shade
+
+
+def measure_texels(steps):
+    """Median ms from a light change to the 1024² shaded image written, of the shading alone and the pixel write
+    alone, and of setting 48 node values (the GPU alternative's handler work)."""
+    floor = baked_texel_floor()
+    scene = bpy.context.scene
+    scene.prt_display.show_prt = True
+    set_light_count(scene, 1)
+    planes = np.ascontiguousarray(texel_maps.read_planes(floor.data)[0].T)
+    image = texel_maps.shaded_image(floor.data)
+    light = np.ones((3, 16), dtype=np.float32)
+    rgba = np.ones((len(planes), 4), dtype=np.float32)
+    material = floor.material_slots[0].material
+    values = [material.node_tree.nodes.new("ShaderNodeValue") for _ in range(48)]
+    samples = {"update": [], "shade": [], "write": [], "gpu_values": []}
+    with ShadeClock() as clock:
+        for step in range(steps):
+            samples["update"].append(timed_update(scene.prt_lights[:1], 0.2 + 1.2 * ((step * 0.37) % 1.0), clock)[0])
+            start = time.perf_counter()
+            shaded = planes @ np.pad(light.T, ((0, 0), (0, 1)))
+            samples["shade"].append(time.perf_counter() - start)
+            start = time.perf_counter()
+            image.pixels.foreach_set(rgba.ravel())
+            image.update()
+            samples["write"].append(time.perf_counter() - start)
+            start = time.perf_counter()
+            for k, node in enumerate(values):
+                node.outputs[0].default_value = float(shaded[k, 0])
+            samples["gpu_values"].append(time.perf_counter() - start)
+    return {name: 1000 * statistics.median(found) for name, found in samples.items()}
+
+
 def verdict(met):
     return "PASS" if met else "MISS"
 
@@ -131,10 +202,21 @@ def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--steps", type=int, default=60, help="timed updates per configuration")
     parser.add_argument("--json", metavar="PATH", help="also write the numbers as JSON")
+    parser.add_argument("--texels", action="store_true", help="also time a 1024 × 1024 texel map")
+    parser.add_argument("--texels-only", action="store_true", help="time only the 1024 × 1024 texel map")
     args = parser.parse_args(argv)
     prt_addon.register()
     print(f"relight benchmark: bpy {bpy.app.version_string}, {os.cpu_count()} cores, "
           f"load average {os.getloadavg()[0]:.2f}")
+    if args.texels or args.texels_only:
+        ms = measure_texels(args.steps)
+        print(f"texels {TEXEL_SIDE} × {TEXEL_SIDE}, order 4, median of {args.steps} updates: light change to shaded "
+              f"image {ms['update']:.1f} ms (shading {ms['shade']:.1f} ms, pixel write {ms['write']:.1f} ms)   goal <= "
+              f"{GOAL_MS:.0f} ms   {verdict(ms['update'] <= GOAL_MS)}")
+        print(f"  GPU alternative's handler: 48 light values set on nodes in {ms['gpu_values']:.2f} ms")
+        if args.texels_only:
+            prt_addon.unregister()
+            return 0
     print(f"order 4, median of {args.steps} updates each; ms from a light change to the colours written")
     print(f"{'vertices':>10} {'1 light':>9} {'8 (1 moves)':>12} {'ratio':>6} {'8 (all move)':>13} {'ratio':>6}"
           f" {'full update':>12}")

@@ -87,7 +87,7 @@ class CyclesReference(Job):
 
     def _all_passes(self):
         receivers = [ob for group in self.groups for ob in group.objects]
-        with paused(self.context.scene), _scene_restored(self.context, list(self.albedos)) as created:
+        with paused(self.context.scene), scene_restored(self.context, list(self.albedos)) as created:
             environment = _prepare_scene(self.context, receivers, self.albedos, self.samples, created,
                                          self.per_corner)
             if self.scene_light:  # PRT's part of it: a split-off sun is its lamp's
@@ -154,7 +154,7 @@ def _prepare_scene(context, receivers, albedos, samples, created, per_corner):
             ob.data.materials.append(None)
         for slot in ob.material_slots:
             slot.material = material
-    for ob in _not_baked(context, receivers):
+    for ob in not_baked(context, receivers):
         ob.hide_render = True
     for ob in receivers:
         attributes = ob.data.color_attributes
@@ -217,7 +217,7 @@ def rendered_meshes(context, receivers):
             if ob.type == "MESH" and not ob.hide_render and (ob.visible_get() or ob.name in names)]
 
 
-def _not_baked(context, receivers):
+def not_baked(context, receivers):
     """Objects Cycles would render that the bake does not see: other object types, and hidden meshes."""
     names = {ob.name for ob in receivers}
     return [ob for ob in context.view_layer.objects if not ob.hide_render and (
@@ -238,7 +238,7 @@ def _diffuse_material():
 
 
 @contextmanager
-def _scene_restored(context, meshes):
+def scene_restored(context, meshes):
     """Puts back the world, render settings, materials, render visibility, colour attributes and selection, then
     removes every data-block the body added to the yielded list as (collection, block)."""
     scene = context.scene

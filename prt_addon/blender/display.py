@@ -23,6 +23,7 @@ ALBEDO_MIX = "PRT Albedo"  # the Mix node whose factor is the albedo switch
 DIFFUSE_ALBEDO_MIX = "PRT Diffuse Albedo"  # the same switch for the lamp's diffuse light
 LAMP_SWITCH = "PRT Lamp"  # the Mix Shader adding EEVEE's diffuse light from a split-off sun's lamp (factor 1)
 CAMERA_ONLY = "PRT Camera Only"  # the World's Mix Shader that keeps its light from everything but camera rays
+SHADED_IMAGE_KEY = "_prt_display_image"  # on a texel bake's display material: the shaded image it shows
 
 
 # -- colours ----------------------------------------------------------------------------------------------------
@@ -66,16 +67,21 @@ def is_shown(ob) -> bool:
     return materials.ORIGINALS_KEY in ob
 
 
-def show(ob):
-    """Display materials in each of ob's slots (one new slot when it has none); the originals are remembered."""
+def show(ob, texels=None):
+    """Display materials in each of ob's slots (one new slot when it has none); the originals are remembered.
+    texels: (shaded image name, UV map) for a texel bake, whose materials show that image instead of the colour
+    attribute."""
+    image = texels[0] if texels else ""
     if is_shown(ob):
-        return
+        if all(slot.material is None or slot.material.get(SHADED_IMAGE_KEY, "") == image for slot in ob.material_slots):
+            return
+        restore(ob)  # baked the other way since it was shown
     originals = [slot.material for slot in ob.material_slots]
     ob[materials.ORIGINALS_KEY] = [material.name if material else "" for material in originals]
     if not originals:
-        ob.data.materials.append(display_material(None))
+        ob.data.materials.append(display_material(None, texels))
     for slot, original in zip(ob.material_slots, originals):
-        slot.material = display_material(original)
+        slot.material = display_material(original, texels)
 
 
 def restore(ob):
@@ -155,19 +161,24 @@ def _world_for_camera_only(tree, camera_only: bool):
             tree.links.new(surface, output.inputs["Surface"])
 
 
-def display_material(original):
-    """The display material standing for `original` (None: an object without material), made once."""
+def display_material(original, texels=None):
+    """The display material standing for `original` (None: an object without material), made once; for a texel
+    bake (texels: its shaded image's name and UV map), once per shaded image."""
     stands_for = original.name if original else ""
-    existing = next((m for m in bpy.data.materials if m.get(DISPLAY_OF_KEY) == stands_for), None)
-    return existing or _new_display_material(f"PRT {stands_for}" if original else "PRT Display", original)
+    image = texels[0] if texels else ""
+    existing = next((m for m in bpy.data.materials
+                     if m.get(DISPLAY_OF_KEY) == stands_for and m.get(SHADED_IMAGE_KEY, "") == image), None)
+    name = (f"PRT {stands_for}" if original else "PRT Display") + (f" {image}" if image else "")
+    return existing or _new_display_material(name, original, texels)
 
 
-def _new_display_material(name, original):
+def _new_display_material(name, original, texels):
     material = new_node_material(name)
     material[DISPLAY_OF_KEY] = original.name if original else ""
     nodes, links = material.node_tree.nodes, material.node_tree.links
-    colour = nodes.new("ShaderNodeVertexColor")
-    colour.layer_name = DISPLAY_ATTRIBUTE
+    colour = _shaded_image_node(material, *texels) if texels else nodes.new("ShaderNodeVertexColor")
+    if not texels:
+        colour.layer_name = DISPLAY_ATTRIBUTE
     mix = nodes.new("ShaderNodeMix")
     mix.name = ALBEDO_MIX
     mix.data_type = "RGBA"
@@ -207,6 +218,21 @@ def _with_lamp_light(material, emission):
     links.new(emission, switch.inputs[1])
     links.new(both.outputs["Shader"], switch.inputs[2])
     return switch.outputs["Shader"], _socket(albedo.inputs, "B_Color")
+
+
+def _shaded_image_node(material, image_name, uv_map):
+    """The texel bake's shaded image through its lightmap UV map, filtered linearly (its gutters hide seams)."""
+    material[SHADED_IMAGE_KEY] = image_name
+    nodes = material.node_tree.nodes
+    image = nodes.new("ShaderNodeTexImage")
+    image.image = bpy.data.images[image_name]
+    image.interpolation = "Linear"
+    image.extension = "EXTEND"
+    uv = nodes.new("ShaderNodeUVMap")
+    uv.uv_map = uv_map
+    uv.location = (-550, 0)
+    material.node_tree.links.new(uv.outputs["UV"], image.inputs["Vector"])
+    return image
 
 
 def _socket(sockets, identifier):

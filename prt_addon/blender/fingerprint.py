@@ -13,10 +13,12 @@ parts, so a check can say what changed and Bake Stale rebakes only the objects w
 - settings: the bake settings the mode reads and the stored layout's version (core.fingerprint.settings_values).
 """
 
+from dataclasses import asdict
+
 import numpy as np
 
 from ..core import fingerprint as digests
-from . import geometry, materials, storage
+from . import geometry, materials, storage, texel_bake
 from .geometry import directions_to_world, points_to_world
 from .mesh_arrays import mesh_corner_normals, mesh_corner_vertices, mesh_positions, mesh_triangles
 from .occluders import shadow_caster
@@ -24,17 +26,27 @@ from .occluders import shadow_caster
 FINGERPRINT_KEY = "fingerprint"  # in the bake's metadata: part → hex digest
 
 
-def fingerprints(depsgraph, objects, settings) -> dict[str, dict[str, str]]:
-    """Each mesh object's fingerprint under these bake settings, by name."""
+def fingerprints(depsgraph, objects, settings, storage_options=None) -> dict[str, dict[str, str]]:
+    """Each mesh object's fingerprint under these bake settings (and storage options overriding the objects'
+    own, as a bake's), by name."""
     casters = _caster_digests(depsgraph, settings.mode == "interreflected") if settings.mode != "unshadowed" else []
-    settings_digest = digests.values_digest(digests.settings_values(settings))
     return {ob.name: {
         "geometry": _geometry_digest(ob, depsgraph),
         "transform": digests.array_digest(np.array(ob.matrix_world)),
         "occluders": digests.set_digest(digest for owner, digest in casters if owner != ob.name),
         "materials": _materials_digest(ob, depsgraph, settings.mode),
-        "settings": settings_digest,
+        "settings": _settings_digest(ob, settings, storage_options or {}),
     } for ob in objects}
+
+
+def _settings_digest(ob, settings, storage_options) -> str:
+    """The settings part: the bake's settings, and the object's storage where it is not per vertex (so vertex
+    bakes keep the digests they always had)."""
+    values = digests.settings_values(settings)
+    options = texel_bake.options_for(ob, storage_options)
+    if options.storage != "vertex":
+        values["storage"] = asdict(options)
+    return digests.values_digest(values)
 
 
 def what_changed(ob, current: dict) -> list[str]:

@@ -11,10 +11,11 @@ from contextlib import contextmanager
 import math
 
 import bpy
+import numpy as np
 
 from ..core import lights as core_lights
 from ..core.errors import StaleBake
-from . import display, heatmaps, storage
+from . import display, heatmaps, storage, texel_maps
 from .lights import environment_image, scene_lights, sync_sun_lamps
 
 
@@ -107,7 +108,10 @@ class Relighter:
         if cached is not None and cached[0] == key:
             return cached[1]
         try:
-            baked = storage.read_transfer(mesh)[0], storage.corner_points_of(mesh)
+            if texel_maps.is_texel_bake(mesh):  # one row per texel, as the shading reads them
+                baked = np.ascontiguousarray(texel_maps.read_planes(mesh)[0].T), texel_maps.TEXEL_STORAGE
+            else:
+                baked = storage.read_transfer(mesh)[0], storage.corner_points_of(mesh)
         except StaleBake as problem:
             baked = None
             self._report_once(f"PRT: not relighting: {problem}")
@@ -129,12 +133,25 @@ class Relighter:
         totals = self._light_cache.totals(scene_lights(settings), orders, settings.prt_display.window)
         self.auto_window = ({order: (self._light_cache.auto_strengths[order], core_lights.negative_share(totals[order]))
                              for order in orders} if settings.prt_display.window == "auto" else {})
+        self._write_colours(receivers, totals)
+
+    def shade_all(self, scene, totals: dict):
+        """Shades every baked mesh of the scene under the given light ({order: (3, order²)}), whatever its SH
+        lights: validation shows the light it gives Cycles."""
+        self._write_colours(list(self._receivers(scene)), totals)
+
+    def _write_colours(self, receivers, totals):
+        """The colours of each mesh whose light or bake changed."""
         for ob, (transfer, corner_points) in receivers:
             light = totals[math.isqrt(transfer.shape[-1])]
             state = (_bake_key(ob.data), light.tobytes())
-            if self._shaded.get(ob.data.name_full) != state:
+            if self._shaded.get(ob.data.name_full) == state:
+                continue
+            if corner_points is texel_maps.TEXEL_STORAGE:
+                texel_maps.write_shaded(ob.data, transfer, light)
+            else:
                 display.write_display_colours(ob.data, transfer, light, corner_points)
-                self._shaded[ob.data.name_full] = state
+            self._shaded[ob.data.name_full] = state
 
     def _paint_heatmaps(self, receivers, mode):
         """Heatmap colours on one scale; a mesh is painted again only when its values, its bake or the scale
@@ -159,10 +176,11 @@ def _bake_key(mesh):
 
 def _sync_display(scene, receivers, settings):
     """Display materials on the receivers while the PRT display is on; everything else shows its own."""
-    shown = {ob.name_full for ob, _ in receivers} if settings.show_prt else set()
+    shown = {ob.name_full: where for ob, (_, where) in receivers} if settings.show_prt else {}
     for ob in scene.objects:
         if ob.name_full in shown:
-            display.show(ob)
+            display.show(ob, texel_maps.display_source(ob.data) if shown[ob.name_full] is texel_maps.TEXEL_STORAGE
+                         else None)
         elif display.is_shown(ob) and ob.mode != "EDIT":  # an object being edited keeps what it shows
             display.restore(ob)
     display.set_albedo(settings.use_albedo and settings.mode == heatmaps.SHADED)  # a heatmap shows as it is

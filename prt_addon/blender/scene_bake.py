@@ -12,7 +12,7 @@ import numpy as np
 from ..core import bake, interpolation, job, settings as spec, subsurface, workers
 from ..core.errors import InputError
 from ..core.progress import JobSequence, WrappingJob
-from . import fingerprint, geometry, materials, storage
+from . import fingerprint, geometry, materials, storage, texel_bake
 from .occluders import occluders_from_depsgraph
 
 
@@ -77,17 +77,21 @@ class BakeReport:
     problems: list
     notes: list
     subsurface_objects: list
+    storage: list = field(default_factory=list)  # what each texel or Auto object stores, and why
 
     def as_dict(self) -> dict:
         return {**asdict(self.summary), "objects": self.objects, "problems": self.problems, "notes": self.notes,
-                "subsurface_objects": self.subsurface_objects}
+                "subsurface_objects": self.subsurface_objects, "storage": self.storage}
 
 
 class SceneBake(WrappingJob):
-    """Gathers receivers and occluders, runs a TransferJob, then stores everything at once (its outcome)."""
+    """Gathers receivers and occluders, runs the bake (a TransferJob, and one per finer lattice of texel
+    receivers: core.texel_refine), then stores everything at once (its outcome)."""
 
-    def __init__(self, context, settings: bake.BakeSettings, object_names=None, workers: int = 1, shard=None):
-        """`shard` (K, N): the job bakes only farm shard K's chunks, for a part file (blender.farm)."""
+    def __init__(self, context, settings: bake.BakeSettings, object_names=None, workers: int = 1,
+                 storage_options=None, shard=None):
+        """storage_options: texel_bake.TexelOptions fields that override every receiver's own (the command
+        line's). `shard` (K, N): the job bakes only farm shard K's chunks, for a part file (blender.farm)."""
         problems = settings.problems()
         if problems:
             raise InputError("; ".join(problems))
@@ -113,7 +117,7 @@ class SceneBake(WrappingJob):
         if not receivers:
             raise InputError("nothing to bake: " + ("; ".join(self.problems) or "no mesh objects"))
         # Taken now, from the scene as it is baked: objects may move while a modal bake runs.
-        self.fingerprints = fingerprint.fingerprints(depsgraph, self.objects, settings)
+        self.fingerprints = fingerprint.fingerprints(depsgraph, self.objects, settings, storage_options)
         # Every visible mesh reflects light onto the receivers in an interreflected bake, so its transfer is solved
         # too.
         bouncers = self._bouncing_surfaces(context, depsgraph, {ob.name for ob in self.objects}) if bouncing else []
@@ -124,23 +128,48 @@ class SceneBake(WrappingJob):
             if sources <= {ob.name for ob in self.objects}:
                 self.notes.append("no visible mesh besides the receivers casts shadows; "
                                   "each receiver is shadowed by the receivers only")
+        coloured = bouncing and _albedo_channels([s.albedo for s in self.surfaces.all])[0].shape[1] > 1
+        planned = texel_bake.plan(self.objects, receivers, occluders, settings, storage_options or {}, depsgraph,
+                                  self.problems, coloured)
+        if not planned.objects:
+            raise InputError("nothing to bake: " + "; ".join(self.problems))
+        self.objects, self.surfaces.receivers = planned.objects, planned.surfaces
+        self.storage_decisions = planned.decisions
+        self.plan = planned  # with Auto's probes, baked before the bake
+        self.notes += planned.decisions
         solved = self.surfaces.all
-        self.job = job.TransferJob([surface.receiver for surface in solved], occluders, settings,
-                                   spec.worker_count(workers), worker_launch(),
-                                   albedo=_albedo_channels([s.albedo for s in solved]) if bouncing else None,
-                                   shard=shard)
-        self.probes, self.probe_job = self._probe_job(occluders, spec.worker_count(workers))
-        self.sequence = JobSequence([self.job, self.probe_job],
+        if shard is not None:
+            texel_objects = [ob.name for ob, surface in zip(self.objects, self.surfaces.receivers)
+                             if isinstance(surface, texel_bake.TexelSurface)]
+            if texel_objects:
+                # A texel bake refines lattice by lattice, each step deciding from the whole previous lattice.
+                raise InputError(f"{', '.join(map(repr, texel_objects))} store per texel, and texel bakes run on one "
+                                 f"machine: bake them without --shard, or with Storage Vertex")
+        albedo = _albedo_channels([s.albedo for s in solved]) if bouncing else None
+        count = spec.worker_count(workers)
+
+        def transfer_job(receivers, gather_only=False):
+            return job.TransferJob(receivers, occluders, settings, count, worker_launch(), albedo=albedo,
+                                   shard=shard, gather_only=gather_only)
+        # Texel receivers are baked lattice by lattice, coarse to fine; the first job is the one the checks size.
+        self.levels = texel_bake.refining_job(solved, settings, transfer_job)
+        self.job = self.levels.first
+        self.probes, self.probe_job = self._probe_job(occluders, count)
+        self.sequence = JobSequence([self.levels, self.probe_job],
                                     [self.job.total_vertices, max(1, self.probe_job.total_vertices)], "PRT bake")
         self.summary = None
 
     def _probe_job(self, occluders, workers):
         """Points inside the receivers' faces, baked after them to measure what storage per vertex loses between
-        vertices (core.interpolation); an interreflected bake's probes measure its direct transfer."""
+        vertices (core.interpolation); an interreflected bake's probes measure its direct transfer. Not for texel
+        receivers (their estimate holds what interpolating between texels may miss: core.texel_refine), nor for
+        the objects Auto's probes measured already."""
         probes = {surface.receiver.name: interpolation.face_probes(
                       surface.triangles, surface.receiver.positions, surface.receiver.normals,
                       interpolation.probe_count(_vertex_count(surface)), self.settings.seed)
-                  for surface in self.surfaces.receivers}
+                  for surface in self.surfaces.receivers
+                  if not isinstance(surface, texel_bake.TexelSurface)
+                  and surface.receiver.name not in self.plan.measured}
         probes = {name: found for name, found in probes.items() if len(found.positions)}
         receivers = [bake.Receiver(name, found.positions, found.normals, bake.Receiver.key_for(name + " probes"))
                      for name, found in probes.items()]
@@ -168,23 +197,32 @@ class SceneBake(WrappingJob):
 
     def store(self) -> job.Summary:
         """Writes every receiver's transfer (replacing older bakes) and returns the summary."""
-        results = self.job.results()[: len(self.surfaces.receivers)]  # bouncers are not stored
-        self.summary = self.job.summary(results)
+        results = self.levels.results()[: len(self.surfaces.receivers)]  # bouncers are not stored
+        self.summary = self.levels.summary(results)
         self._count_vertices()
         self._measure_interpolation(results)
         self.subsurface_objects = []
         for ob, surface, result in zip(self.objects, self.surfaces.receivers, results):
             material = materials.subsurface_material(ob) if self.settings.mode != "unshadowed" else None
+            if material is not None and isinstance(surface, texel_bake.TexelSurface):
+                self.notes.append(f"{ob.name!r}: its Subsurface Weight is left out of its texel bake")
+                continue
             if material is not None:
                 result.transfer = with_subsurface(surface, result.transfer, *material)
                 self.subsurface_objects.append(ob.name)
+        if self.levels.states:
+            self.storage_decisions.append(f"texel lattices: {self.levels.lattice_line()}")
         for ob, surface, result in zip(self.objects, self.surfaces.receivers, results):
             extra = {"time_s": self.summary.time_s, fingerprint.FINGERPRINT_KEY: self.fingerprints[ob.name],
                      **{key: self.summary.per_object[ob.name][key] for key in INTERPOLATION_KEYS
                         if key in self.summary.per_object[ob.name]}}
             if self.summary.bounces is not None:
                 extra["bounces"] = self.summary.bounces
-            storage.write_transfer(ob, result, extra, self.settings, surface.corner_points, surface.split_vertices)
+            if isinstance(surface, texel_bake.TexelSurface):
+                texel_bake.write(ob, surface, result, extra, self.settings)
+            else:
+                storage.write_transfer(ob, result, extra, self.settings, surface.corner_points,
+                                       surface.split_vertices)
         return self.summary
 
     def _measure_interpolation(self, results):
@@ -194,21 +232,24 @@ class SceneBake(WrappingJob):
         direct = self.job.direct or [result.transfer for result in results]
         everything = []
         for ob, result, transfer in zip(self.objects, results, direct):
-            if ob.name not in self.probes:
+            if ob.name in self.plan.measured:
+                squared = self.plan.measured[ob.name]
+            elif ob.name in self.probes:
+                found = probe_results[ob.name]
+                squared = interpolation.interpolation_errors(self.probes[ob.name], found.transfer, found.std_error,
+                                                             transfer, result.std_error, scale)
+            else:
                 continue
-            found = probe_results[ob.name]
-            squared = interpolation.interpolation_errors(self.probes[ob.name], found.transfer, found.std_error,
-                                                         transfer, result.std_error, scale)
             everything.append(squared)
             rms, worst = interpolation.summarise(squared)
             self.summary.per_object[ob.name].update(est_interp_rms_rel_error=rms, est_interp_max_rel_error=worst,
                                                     interp_points=len(squared))
         (self.summary.est_interp_rms_rel_error,
          self.summary.est_interp_max_rel_error) = interpolation.summarise(np.concatenate(everything or [[]]))
-        self.summary.interp_points = self.probe_job.total_vertices
-        self.summary.interp_rays = self.probe_job.rays
-        self.summary.phases_s["probes_s"] = self.probe_job.progress.elapsed
-        self.summary.time_s = self.sequence.progress.elapsed
+        self.summary.interp_points = self.probe_job.total_vertices + sum(map(len, self.plan.measured.values()))
+        self.summary.interp_rays = self.probe_job.rays + self.plan.probe_rays
+        self.summary.phases_s["probes_s"] = self.probe_job.progress.elapsed + self.plan.probe_s
+        self.summary.time_s = self.sequence.progress.elapsed + self.plan.probe_s
 
     def _count_vertices(self):
         """The summary in mesh vertices, with the shading points they were split into (core.corners)."""
@@ -221,4 +262,4 @@ class SceneBake(WrappingJob):
 
     def report(self) -> BakeReport:
         return BakeReport(self.summary, [ob.name for ob in self.objects], self.problems, self.notes,
-                          self.subsurface_objects)
+                          self.subsurface_objects, self.storage_decisions)

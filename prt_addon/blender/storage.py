@@ -25,7 +25,8 @@ import numpy as np
 
 from ..core import bake
 from ..core.statistics import rms
-from ..core.errors import StaleBake
+from ..core.errors import InputError, StaleBake
+from . import texel_maps  # (texel_maps imports this module too: its names are read at call time)
 
 ATTRIBUTE_PREFIX = "_prt_"
 ERROR_ATTRIBUTE = "_prt_error"
@@ -73,10 +74,15 @@ def write_transfer(ob, result, summary_fields: dict, settings: bake.BakeSettings
     if corner_points is not None:
         mesh.attributes.new(POINT_ATTRIBUTE, "INT", "CORNER")
         mesh.attributes[POINT_ATTRIBUTE].data.foreach_set("value", corner_points.astype(np.int32))
+    write_metadata(mesh, result, settings, domain, split_vertices, summary_fields)
+
+
+def write_metadata(mesh, result, settings: bake.BakeSettings, domain: str, split_vertices: int, fields: dict):
+    """The bake's metadata, written last: per vertex or corner (`domain`), or per texel (blender.texel_maps)."""
     mesh[METADATA_KEY] = {
-        "order": order,
+        "order": settings.order,
         "mode": settings.mode,
-        "channels": len(planes),
+        "channels": 1 if result.transfer.ndim == 2 else result.transfer.shape[1],
         "samples": settings.samples,
         "target_error": settings.target_error,
         "seed": settings.seed,
@@ -92,12 +98,13 @@ def write_transfer(ob, result, summary_fields: dict, settings: bake.BakeSettings
         "est_max_rel_error": float(result.rel_error.max(initial=0.0)),
         "date": datetime.now(timezone.utc).isoformat(timespec="seconds"),
         "bake_id": uuid.uuid4().hex,  # tells two bakes apart even within the same second
-        **summary_fields,
+        **fields,
     }
     mesh.update()
 
 
 def remove_transfer(mesh):
+    texel_maps.remove_maps(mesh)
     for name in [a.name for a in mesh.attributes if a.name.startswith(ATTRIBUTE_PREFIX)]:
         mesh.attributes.remove(mesh.attributes[name])
     if METADATA_KEY in mesh:
@@ -129,6 +136,9 @@ def read_transfer(mesh) -> tuple[np.ndarray, dict]:
     """(P, n²) grey or (P, 3, n²) coloured float32 transfer per shading point (the vertices, unless the bake is
     per corner: see corner_points) and the metadata; raises StaleBake when it no longer fits the mesh."""
     meta = _metadata(mesh)
+    if meta.get("storage") == "TEXEL":
+        raise InputError(f"mesh {mesh.name!r} is baked per texel, not per vertex: compare it with "
+                         f"`prt validate --image`")
     order, letters = meta["order"], CHANNEL_LETTERS[meta.get("channels", 1)]
     corner_points = corner_points_of(mesh)
     planes = [_read_plane(mesh, order, letter, corner_points, meta.get("points")) for letter in letters]

@@ -22,8 +22,11 @@ def add_parser(commands):
     parser.add_argument("--objects", help="comma-separated receiver names (default: every visible mesh)")
     parser.add_argument("--preset", type=str.lower, choices=list(presets.PRESETS),
                         help="start from a preset's settings (see the README's table); options given override it")
-    for setting in spec.BAKE + (spec.WORKERS,):
+    for setting in spec.BAKE + (spec.WORKERS,) + spec.TEXEL:
         add_setting(parser, setting)
+    parser.add_argument("--uv-map", help="texel storage: the UV map the texels follow (default: PRT's own)")
+    parser.add_argument("--no-new-uv-map", action="store_true",
+                        help="texel storage: never add PRT's own lightmap UV map; a mesh without --uv-map is not baked")
     parser.add_argument("--output", help="where to save the baked file (default: over the opened file)")
     parser.add_argument("--report", help="write the bake report as JSON here")
     parser.add_argument("--stale-only", action="store_true",
@@ -74,6 +77,16 @@ def settings_from(args) -> BakeSettings:
     return BakeSettings(**chosen)
 
 
+def storage_options(args) -> dict:
+    """The texel options given, for every receiver (blender.texel_bake.TexelOptions); the rest are each object's."""
+    given = {setting.name: getattr(args, setting.name) for setting in spec.TEXEL if hasattr(args, setting.name)}
+    if args.uv_map:
+        given["uv_map"] = args.uv_map
+    if args.no_new_uv_map:
+        given["new_uv_map"] = False
+    return given
+
+
 def run(args, in_blender: bool) -> int:
     settings = settings_from(args)
     shard = _farm_options(args)
@@ -101,7 +114,8 @@ def run(args, in_blender: bool) -> int:
             scene_bake = merge_parts(bpy.context, parts, log=log)
         warn(scene_bake.problems + scene_bake.notes)
     else:
-        scene_bake = SceneBake(bpy.context, settings, receivers, workers=workers)
+        scene_bake = SceneBake(bpy.context, settings, receivers, workers=workers,
+                               storage_options=storage_options(args))
         found += scene_checks.scene_checks(bpy.context, scene_bake)
         log("prt: checks before any ray:")
         for check in found:
@@ -117,6 +131,11 @@ def _farm_options(args) -> tuple[int, int] | None:
     """Checks how the farm options combine; the shard (K, N) to bake, or None."""
     if (args.shard is None) != (args.out is None):
         raise InputError("--shard K/N and --out PART.npz go together")
+    texel_options = storage_options(args)
+    if texel_options and (args.shard or args.dask):
+        # Shards and the merge read each object's own storage choice, so that they plan the same bake.
+        raise InputError(f"farm bakes store per vertex, as each object's own Storage says: "
+                         f"{', '.join('--' + name.replace('_', '-') for name in texel_options)} does not apply")
     if args.shard is None:
         return None
     others = [option for option, given in (("--stale-only", args.stale_only), ("--dask", args.dask),

@@ -3,11 +3,12 @@ further corner normals of split vertices), with each face corner's point where t
 scene's baked meshes as a glTF binary packed for a profile (blender.gltf)."""
 
 import json
+import os
 
 import bpy
 import numpy as np
 
-from ..blender import geometry, gltf, mesh_arrays, storage
+from ..blender import geometry, gltf, mesh_arrays, storage, texel_maps
 from ..core.errors import InputError
 from ..core.gltf_pack import PROFILES
 from .common import open_file
@@ -37,6 +38,8 @@ def run(args, in_blender: bool) -> int:
     if ob is None or ob.type != "MESH":
         raise InputError(f"no mesh object named {args.object!r} in {args.file}")
     mesh = ob.data
+    if texel_maps.is_texel_bake(mesh):
+        return _export_texels(ob, args.npz)
     transfer, meta = storage.read_transfer(mesh)
     corner_points = storage.corner_points_of(mesh)
     point_vertices = np.arange(len(transfer))
@@ -70,3 +73,19 @@ def gltf_summary(done: dict) -> str:
                       f"{'attributes' if p.texture is None else 'texels of a data texture'}"
                       for name, p in done["packs"].items())
     return f"wrote {done['path']} ({done['profile']} profile): {packs}; COLOR_0 under {done['light_source']}"
+
+
+def _export_texels(ob, npz: str) -> int:
+    """A texel bake: its maps as 32-bit EXR files beside the .npz (`<stem>_t00.exr`, ..., `<stem>_error.exr`, laid
+    out as stored), and the .npz with `transfer` (height × width × n², float32, gutters included), the UV map's
+    name, `matrix_world` and `metadata`."""
+    mesh = ob.data
+    planes, meta = texel_maps.read_planes(mesh)
+    stem = os.path.splitext(npz)[0]
+    written = texel_maps.save_exr(mesh, stem)
+    np.savez(npz, transfer=planes.T.reshape(meta["height"], meta["width"], -1), uv_map=np.array(meta["uv_map"]),
+             matrix_world=np.array(ob.matrix_world, dtype=np.float64), metadata=np.array(json.dumps(meta)))
+    print(f"prt: wrote {npz} and {len(written)} EXR maps ({', '.join(map(os.path.basename, written))}): "
+          f"{meta['width']} × {meta['height']} texels in UV map {meta['uv_map']!r}, order {meta['order']}, "
+          f"{meta['mode']}")
+    return 0

@@ -308,7 +308,7 @@ def shadowed_chunk(caster: RayCaster, positions, normals, inward, keys, settings
 
 def ray_sets(labels, rows) -> list[np.ndarray]:
     """The ray groups among `rows`: one (g, k) array of rows per group size k (every row alone without labels)."""
-    if not len(rows):
+    if not len(rows):  # every row exact without rays (a lone convex object): no group, not one of size 0
         return []
     if labels is None:
         return [rows[:, None]]

@@ -15,6 +15,10 @@ from . import sampling
 # smooth bake's rays and estimate the RMS to about ±10 % (≥ 32 points).
 POINTS_PER_PROBE = 16
 FEWEST_PROBES, MOST_PROBES = 32, 1024
+# Storage Auto decides from its probes before the bake, so it takes the most: a shadow crossing a one-quad floor
+# must be found. Its target where the bake has none:
+AUTO_PROBES = MOST_PROBES
+AUTO_TARGET = 0.01
 
 
 @dataclass

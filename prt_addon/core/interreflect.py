@@ -42,12 +42,15 @@ class HitRecords:
         parts = [p for p in parts if len(p.vertex)] or [HitRecords.empty()]
         return HitRecords(*(np.concatenate([getattr(p, name) for p in parts]) for name in HitRecords.FIELDS))
 
+    def where(self, mask: np.ndarray) -> "HitRecords":
+        return HitRecords(*(getattr(self, name)[mask] for name in HitRecords.FIELDS))
+
     def of_replicate(self, replicate: int, replicates: int) -> "HitRecords":
         """The records of one replicate's rays, weighted as that replicate's estimate alone weighs them (each
         replicate holds 1/R of every vertex's rays)."""
-        mine = self.replicate == replicate
-        return HitRecords(self.vertex[mine], self.triangle[mine], self.barycentric[mine],
-                          self.weight[mine] * replicates, self.replicate[mine])
+        mine = self.where(self.replicate == replicate)
+        mine.weight = mine.weight * replicates
+        return mine
 
 
 @dataclass

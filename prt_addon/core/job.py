@@ -83,13 +83,15 @@ class TransferJob(Job):
     """Bakes every receiver. Call step() until it returns True, or run() to do it all at once."""
 
     def __init__(self, receivers, occluders, settings: bake.BakeSettings, workers: int = 1,
-                 worker_command=None, albedo=None, owners=None, shard=None):
+                 worker_command=None, albedo=None, owners=None, shard=None, gather_only: bool = False):
         """Interreflected bakes need `albedo`, one (V, C) array per receiver, and occluders whose first
         `solved_vertices` are the receivers' vertices in order (so a hit triangle's corners are solved vertices).
         `owners` fixes which process bakes each chunk when workers run (0: this one, k: worker k); by default
         spawned workers get chunk_owners' split and forked ones share a queue with this process.
         `shard` (K, N) bakes only farm shard K's chunks (workers.shard_chunks) and keeps their results for its part
-        file (shard_results); interreflections are bounced where the parts are merged (take_parts)."""
+        file (shard_results); interreflections are bounced where the parts are merged (take_parts).
+        gather_only: an interreflected job whose receivers are not the solved surfaces (texels): it records its
+        rays' hits (`records`) for a gather from a solution made elsewhere, and bounces nothing itself."""
         self.receivers = receivers
         self.occluders = occluders
         self.settings = settings
@@ -104,7 +106,8 @@ class TransferJob(Job):
         self.shard_results = None if shard is None else {}
         self.total_vertices = sum(len(r.positions) for r in receivers)
         self._vertex_offsets = np.cumsum([0] + [len(r.positions) for r in receivers])
-        if settings.mode == "interreflected" and occluders.solved_vertices != self.total_vertices:
+        self.gather_only = gather_only
+        if settings.mode == "interreflected" and not gather_only and occluders.solved_vertices != self.total_vertices:
             raise ValueError(f"interreflection needs occluders that begin with the {self.total_vertices} solved "
                              f"vertices, not {occluders.solved_vertices}")
         self.baked_vertices = sum(len(self.chunks[index][1]) for index in self.baked_chunks)
@@ -136,7 +139,7 @@ class TransferJob(Job):
         while time.perf_counter() < deadline:
             if next(self._runner, StopIteration) is StopIteration:
                 self.phase_times["rays_s"] = self.progress.elapsed
-                if self.settings.mode == "interreflected" and self.shard is None:
+                if self.settings.mode == "interreflected" and self.shard is None and not self.gather_only:
                     self._bounce()
                 self.finished = True
                 break
@@ -319,8 +322,11 @@ class TransferJob(Job):
                                       self._rays[index], self._skipped[index]))
         return out
 
-    def summary(self, results: list[ReceiverResult]) -> Summary:
-        elapsed = self.progress.elapsed + self.phase_times.get("shards_s", 0.0)
+    def summary(self, results: list[ReceiverResult], receivers=None, elapsed: float | None = None) -> Summary:
+        """receivers, elapsed: others than this job's (a texel bake's refinement runs several jobs)."""
+        receivers = receivers or self.receivers
+        if elapsed is None:
+            elapsed = self.progress.elapsed + self.phase_times.get("shards_s", 0.0)
         rel = np.concatenate([r.rel_error for r in results]) if results else np.zeros(0)
         rays = int(sum(int(r.rays.sum()) for r in results))
         per_object = {
@@ -331,7 +337,7 @@ class TransferJob(Job):
                 "est_rms_rel_error": rms(result.rel_error),
                 "est_max_rel_error": float(result.rel_error.max(initial=0.0)),
             }
-            for receiver, result in zip(self.receivers, results)
+            for receiver, result in zip(receivers, results)
         }
         return Summary(
             objects=len(results), vertices=int(len(rel)), points=int(len(rel)), order=self.settings.order,

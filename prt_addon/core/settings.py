@@ -64,6 +64,18 @@ WORKERS = Setting("workers", "Workers", "Processes that cast rays in parallel (t
 # What BakeSettings holds, in the order the panel and the help show them; workers only change how fast.
 BAKE = (MODE, ORDER, SAMPLES, TARGET_ERROR, MAX_SAMPLES, SEED, BOUNCES, BOUNCE_TOLERANCE)
 
+# Per object: where its transfer is stored (blender.texel_bake). The command line's options apply to every receiver.
+STORAGE = Setting("storage", "Storage", "Where the transfer is stored", "vertex", choices=(
+    ("vertex", "Vertex", "Per vertex (per face corner where normals split): one dot product per vertex"),
+    ("texel", "Texel", "Per texel of a lightmap UV map: shadows and light between vertices"),
+    ("auto", "Auto", "Per texel only where interpolating between vertices misses the target error (or 1 %)"),
+))
+RESOLUTION = Setting("resolution", "Resolution", "Texels along each side of the lightmap; 0: from the texel size, "
+                     "else from the target error", 0, 0, 8192)
+TEXEL_SIZE = Setting("texel_size", "Texel Size", "Size of one texel on the surface (scene units); 0: from the "
+                     "target error", 0.0, 0.0, 1e6)
+TEXEL = (STORAGE, RESOLUTION, TEXEL_SIZE)
+
 
 def worker_count(workers: int) -> int:
     """The processes a Workers setting asks for: 0 means one per core, so a bake uses the machine it runs on."""

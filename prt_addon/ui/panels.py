@@ -56,6 +56,35 @@ class PRT_PT_bake(SidebarPanel, bpy.types.Panel):
             layout.operator("prt.export_gltf", icon="EXPORT")
 
 
+class PRT_PT_storage(SidebarPanel, bpy.types.Panel):
+    """Where the active object's transfer is stored: per vertex, per texel, or Auto."""
+    bl_label = "Storage"
+    bl_idname = "PRT_PT_storage"
+    bl_parent_id = "PRT_PT_bake"
+
+    @classmethod
+    def poll(cls, context):
+        ob = context.active_object
+        return ob is not None and ob.type == "MESH"
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        layout.use_property_decorate = False
+        ob = context.active_object
+        layout.prop(ob, "prt_storage")
+        column = layout.column()
+        column.enabled = ob.prt_storage != "vertex"
+        column.prop(ob, "prt_resolution")
+        sub = column.column()
+        sub.enabled = ob.prt_resolution == 0
+        sub.prop(ob, "prt_texel_size")
+        column.prop_search(ob, "prt_uv_map", ob.data, "uv_layers")
+        sub = column.column()
+        sub.enabled = not ob.prt_uv_map
+        sub.prop(ob, "prt_new_uv_map")
+
+
 class PRT_PT_bake_info(SidebarPanel, bpy.types.Panel):
     """What is stored on the active object: how, when, and how accurate."""
     bl_label = "Stored Bake"
@@ -84,9 +113,11 @@ class PRT_PT_bake_info(SidebarPanel, bpy.types.Panel):
         if "est_interp_rms_rel_error" in meta:
             column.label(text=f"Between vertices RMS {meta['est_interp_rms_rel_error']:.4f}, "
                               f"max {meta['est_interp_max_rel_error']:.4f}")
+        if meta.get("storage") == "TEXEL":
+            column.label(text=f"Per texel: {meta['width']} × {meta['height']} in {meta['uv_map']!r}")
         column.label(text=f"Baked {meta['date']}")
 
 
-classes = (PRT_PT_bake, PRT_PT_bake_info)
+classes = (PRT_PT_bake, PRT_PT_storage, PRT_PT_bake_info)
 
 register, unregister = bpy.utils.register_classes_factory(classes)

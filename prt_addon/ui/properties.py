@@ -60,7 +60,16 @@ class PRT_PG_job_status(bpy.types.PropertyGroup):
 classes = (PRT_PG_bake_settings, PRT_PG_job_status)
 
 
+# Each object's storage choice (blender.texel_bake reads them as prt_storage, prt_resolution, ...).
+OBJECT_STORAGE = [(bpy.types.Object, "prt_" + setting.name, setting_property(setting)) for setting in spec.TEXEL] + [
+    (bpy.types.Object, "prt_uv_map", StringProperty(
+        name="Lightmap UV Map", description="The UV map its texels follow; empty: PRT's own 'PRT Lightmap' map")),
+    (bpy.types.Object, "prt_new_uv_map", BoolProperty(
+        name="Add Lightmap UV Map", default=True, description="Without a chosen UV map, PRT may add its own "
+        "'PRT Lightmap' map (Lightmap Pack); the object's own UV maps are never changed")),
+]
+
 register, unregister = classes_and_properties(classes, [
     (bpy.types.Scene, "prt_bake", PointerProperty(type=PRT_PG_bake_settings)),
     (bpy.types.WindowManager, "prt_bake_status", PointerProperty(type=PRT_PG_job_status)),
-])
+] + OBJECT_STORAGE)
