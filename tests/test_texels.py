@@ -12,7 +12,7 @@ from conftest import run_cli
 from node_setups import principled_material
 from prt_addon.blender import storage, texel_maps
 from prt_addon.blender.scene_bake import SceneBake
-from prt_addon.core import bake, lobes
+from prt_addon.core import bake, glb, gltf_pack, lobes, rotation
 from prt_addon.core.errors import InputError
 
 ORDER = 4
@@ -143,6 +143,37 @@ def test_the_maps_are_packed_survive_reloading_and_export_as_exr(empty_scene, tm
     pixels = np.empty(32 * 32 * 4, dtype=np.float32)
     image.pixels.foreach_get(pixels)
     np.testing.assert_allclose(pixels.reshape(-1, 4), planes[:4].T, atol=1e-6)
+
+
+def test_gltf_export_carries_the_maps_in_gltfs_frame_through_the_lightmap_uv_set(empty_scene, tmp_path):
+    floor = floor_quad()
+    ball()
+    run_bake(["Floor"], storage="texel", resolution=32)  # the grid's own UV map serves as its lightmap
+    planes, meta = texel_maps.read_planes(floor.data)
+    path = tmp_path / "texels.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(path))
+    out = run_cli("export", path, "--gltf", tmp_path / "texels.glb")
+    assert out.returncode == 0, out.stderr
+    assert meta["uv_map"] == "UVMap"
+    assert "Floor: order 4 in 4 RGBA32F texel maps of 32 × 32 (TEXCOORD_0)" in out.stdout
+    with open(tmp_path / "texels.glb", "rb") as file:
+        document, binary = glb.read(file.read())
+    mesh = next(m for m in document["meshes"] if m["name"] == "Floor")
+    extras = mesh["extras"]["prt"]
+    assert (extras["layout"], extras["texcoord"], extras["vec4s"]) == ("texel_maps", "TEXCOORD_0", 4)
+    maps = [np.frombuffer(bytes(binary[document["bufferViews"][view]["byteOffset"]:][: 32 * 32 * 16]),
+                          dtype=np.float32).reshape(32, 32, 4) for view in extras["maps"]["bufferViews"]]
+    rows = np.concatenate(maps, axis=-1)[::-1].reshape(-1, ORDER * ORDER)  # top row first → Blender's bottom first
+    back = rotation.rotate(rows.astype(np.float64), gltf_pack.Z_UP_TO_Y_UP.T)
+    np.testing.assert_allclose(back, planes.T, atol=2e-6)
+    texcoord = mesh["primitives"][0]["attributes"]["TEXCOORD_0"]
+    accessor = document["accessors"][texcoord]
+    start = document["bufferViews"][accessor["bufferView"]].get("byteOffset", 0) + accessor.get("byteOffset", 0)
+    exported = np.frombuffer(bytes(binary[start: start + 8 * accessor["count"]]), dtype=np.float32).reshape(-1, 2)
+    lightmap = np.empty(2 * len(floor.data.loops), dtype=np.float32)
+    floor.data.uv_layers[meta["uv_map"]].uv.foreach_get("vector", lightmap)
+    flipped = {(round(u, 5), round(1.0 - v, 5)) for u, v in lightmap.reshape(-1, 2)}  # glTF's v runs down
+    assert {(round(u, 5), round(v, 5)) for u, v in exported} == flipped
 
 
 def test_a_vertex_bake_replaces_a_texel_bake_and_its_maps(empty_scene):

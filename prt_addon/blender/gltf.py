@@ -6,6 +6,10 @@ packing (core.gltf_pack) of the transfer rotated into glTF's frame, and `prt_col
 lights, which the exporter writes as COLOR_0; and the scene's camera. Everything temporary is removed afterwards,
 whatever happens. Then the GLB gets what the exporter cannot write: the convention and the SH lights in the
 scene's extras, each mesh's packing in its extras, data textures as buffer views, and the original names.
+
+A texel bake travels as its maps (core.gltf_pack.PackedMaps: RGBA32F buffer views read through the lightmap UV set,
+which the exporter writes as a TEXCOORD like every UV map), under every profile, since they are no vertex
+attributes; its COLOR_0 holds the shaded maps sampled at each face corner's lightmap UV.
 """
 
 import contextlib
@@ -14,9 +18,9 @@ import os
 import bpy
 import numpy as np
 
-from ..core import glb, gltf_pack, lights as core_lights, shading
+from ..core import glb, gltf_pack, lights as core_lights, shading, texels
 from ..core.errors import InputError
-from . import display, materials, storage
+from . import display, materials, storage, texel_maps
 from .lights import scene_lights
 
 COPY_PREFIX = "PRT glTF "  # names of the temporary copies; taken off again in the file
@@ -31,11 +35,10 @@ def export(scene, path: str, profile_name: str) -> dict:
     profile = gltf_pack.PROFILES.get(profile_name)
     if profile is None:
         raise InputError(f"unknown profile {profile_name!r}: expected one of {', '.join(gltf_pack.PROFILES)}")
-    baked = [(ob, *storage.read_transfer(ob.data), storage.corner_points_of(ob.data)) for ob in baked_objects(scene)]
+    baked = [(ob, *_read_bake(ob.data)) for ob in baked_objects(scene)]
     if not baked:
         raise InputError("no visible mesh has a PRT bake to export")
-    packs = {ob.name: gltf_pack.pack(gltf_pack.to_gltf_frame(transfer).astype(np.float32), profile, ob.name)
-             for ob, transfer, _, _ in baked}
+    packs = {ob.name: _pack(ob, transfer, meta, profile) for ob, transfer, meta, _ in baked}
     shining, window, light_source = _lights(scene)
     orders = {meta["order"] for _, _, meta, _ in baked}
     cache = core_lights.LightCache()
@@ -55,6 +58,28 @@ def export(scene, path: str, profile_name: str) -> dict:
         "lights": gltf_pack.light_extras(shining, top_order)})
     return {"path": os.path.abspath(path), "profile": profile.name, "objects": list(packs),
             "packs": packs, "light_source": light_source}
+
+
+def _read_bake(mesh):
+    """(transfer, metadata, corner points): per shading point, or for a texel bake per face corner, sampled from its
+    maps at the corner's lightmap UV (the colours COLOR_0 carries), with every corner its own point."""
+    if not texel_maps.is_texel_bake(mesh):
+        return (*storage.read_transfer(mesh), storage.corner_points_of(mesh))
+    planes, meta = texel_maps.read_planes(mesh)
+    image = planes.T.reshape(meta["height"], meta["width"], -1)
+    uvs = np.empty(2 * len(mesh.loops), dtype=np.float32)
+    mesh.uv_layers[meta["uv_map"]].uv.foreach_get("vector", uvs)
+    transfer = texels.sample_bilinear(image, uvs.reshape(-1, 2).astype(np.float64)).astype(np.float32)
+    return transfer, meta, np.arange(len(mesh.loops))
+
+
+def _pack(ob, transfer, meta, profile):
+    """The profile's packing of a per-point bake, or a texel bake's maps."""
+    if not texel_maps.is_texel_bake(ob.data):
+        return gltf_pack.pack(gltf_pack.to_gltf_frame(transfer).astype(np.float32), profile, ob.name)
+    planes = texel_maps.read_planes(ob.data)[0]
+    texcoord = f"TEXCOORD_{ob.data.uv_layers.find(meta['uv_map'])}"  # the exporter writes every UV map, in order
+    return gltf_pack.pack_maps(gltf_pack.to_gltf_frame(planes.T).T, meta["width"], meta["height"], texcoord)
 
 
 def _window_extras(window, cache) -> dict:
@@ -126,7 +151,10 @@ def _link_copy(temporary, ob):
 
 
 def _write_packing(mesh, packed, corner_points):
-    """The packed rows per vertex (POINT) or face corner (CORNER, through each corner's point)."""
+    """The packed rows per vertex (POINT) or face corner (CORNER, through each corner's point); texel maps go into
+    the file afterwards."""
+    if isinstance(packed, gltf_pack.PackedMaps):
+        return
     domain = "POINT" if corner_points is None else "CORNER"
     rows = slice(None) if corner_points is None else corner_points
     for name, values in packed.attributes.items():
@@ -166,6 +194,10 @@ def _finish_file(path, scene_name, packs, scene_extras):
         document, binary = glb.read(file.read())
     for mesh in document.get("meshes", []):
         packed = packs[mesh["name"].removeprefix(COPY_PREFIX)]
+        if isinstance(packed, gltf_pack.PackedMaps):
+            mesh["extras"] = {"prt": packed.extras([glb.append_buffer_view(document, binary, image.tobytes())
+                                                     for image in packed.maps])}
+            continue
         extras = packed.extras()
         if packed.texture is not None:
             extras["texture"]["bufferView"] = glb.append_buffer_view(document, binary, packed.texture.tobytes())

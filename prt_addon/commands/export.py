@@ -10,7 +10,7 @@ import numpy as np
 
 from ..blender import geometry, gltf, mesh_arrays, storage, texel_maps
 from ..core.errors import InputError
-from ..core.gltf_pack import PROFILES
+from ..core.gltf_pack import PROFILES, PackedMaps
 from .common import open_file
 
 
@@ -69,10 +69,16 @@ def _run_gltf(scene, path, profile) -> int:
 
 def gltf_summary(done: dict) -> str:
     """One line: where, which profile, how each mesh was packed, under which light COLOR_0 was shaded."""
-    packs = "; ".join(f"{name}: order {p.order} × {p.channels} in {p.vec4s} VEC4 "
-                      f"{'attributes' if p.texture is None else 'texels of a data texture'}"
-                      for name, p in done["packs"].items())
+    packs = "; ".join(f"{name}: {_packing(p)}" for name, p in done["packs"].items())
     return f"wrote {done['path']} ({done['profile']} profile): {packs}; COLOR_0 under {done['light_source']}"
+
+
+def _packing(packed) -> str:
+    if isinstance(packed, PackedMaps):
+        height, width = packed.maps[0].shape[:2]
+        return f"order {packed.order} in {len(packed.maps)} RGBA32F texel maps of {width} × {height} ({packed.texcoord})"
+    return (f"order {packed.order} × {packed.channels} in {packed.vec4s} VEC4 "
+            f"{'attributes' if packed.texture is None else 'texels of a data texture'}")
 
 
 def _export_texels(ob, npz: str) -> int:

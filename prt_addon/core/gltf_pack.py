@@ -99,6 +99,31 @@ def pack(transfer: np.ndarray, profile: Profile, object_name: str) -> Packed:
     return Packed({}, _data_texture(padded), vec4s, order, channels)
 
 
+@dataclass
+class PackedMaps:
+    """A texel bake's transfer as RGBA32F maps through a lightmap UV set: map j holds coefficients 4j .. 4j + 3 of
+    each texel, rows from the top (glTF's v = 0), so a viewer samples them with the TEXCOORD set as any texture."""
+    maps: list  # vec4s × (height, width, 4) float32
+    texcoord: str  # the glTF attribute of the lightmap UV map
+    order: int
+
+    def extras(self, views: list) -> dict:
+        height, width = self.maps[0].shape[:2]
+        return {"order": self.order, "channels": 1, "vec4s": len(self.maps), "layout": "texel_maps",
+                "texcoord": self.texcoord, "maps": {"width": width, "height": height, "format": "RGBA32F",
+                                                     "rows": "top first (v = 0)", "bufferViews": views}}
+
+
+def pack_maps(planes: np.ndarray, width: int, height: int, texcoord: str) -> PackedMaps:
+    """planes (n², height·width), rows from v = 0 at the bottom as Blender stores images, already in glTF's frame."""
+    order = math.isqrt(len(planes))
+    vec4s = -(-len(planes) // 4)
+    padded = np.zeros((4 * vec4s, height * width), dtype=np.float32)
+    padded[: len(planes)] = planes
+    images = padded.T.reshape(height, width, 4 * vec4s)[::-1]  # glTF's v runs down the image
+    return PackedMaps([np.ascontiguousarray(images[..., 4 * j: 4 * j + 4]) for j in range(vec4s)], texcoord, order)
+
+
 def _data_texture(padded: np.ndarray) -> np.ndarray:
     """(P, 4·vec4s) → (height, TEXTURE_WIDTH, 4): the texels of point p are p·vec4s .. p·vec4s + vec4s − 1."""
     texels = padded.reshape(-1, 4)

@@ -237,3 +237,18 @@ def texel_bake_bytes(width: int, height: int, order: int) -> int:
     coefficients = order * order
     images = texels * 4 * 4 * (-(-coefficients // 4) + 2)
     return texels * (TEXEL_POINT_BYTES + coefficients * TEXEL_COEFFICIENT_BYTES) + images
+
+
+def sample_bilinear(image: np.ndarray, uvs: np.ndarray) -> np.ndarray:
+    """(M, C) values of image (height, width, C), rows from v = 0 as Blender stores them, at uvs (M, 2), filtered as
+    Blender's Linear image interpolation with Extend: texel centres at (x + ½) / width, edges clamped."""
+    height, width = image.shape[:2]
+    x = np.clip(uvs[:, 0] * width - 0.5, 0.0, width - 1.0)
+    y = np.clip(uvs[:, 1] * height - 0.5, 0.0, height - 1.0)
+    x0, y0 = np.minimum(x.astype(np.int64), width - 2 if width > 1 else 0), np.minimum(y.astype(np.int64),
+                                                                                       height - 2 if height > 1 else 0)
+    x1, y1 = np.minimum(x0 + 1, width - 1), np.minimum(y0 + 1, height - 1)
+    fx, fy = (x - x0)[:, None], (y - y0)[:, None]
+    return ((1 - fx) * (1 - fy) * image[y0, x0] + fx * (1 - fy) * image[y0, x1]
+            + (1 - fx) * fy * image[y1, x0] + fx * fy * image[y1, x1])
+

@@ -149,3 +149,16 @@ def test_a_shadow_edge_is_baked_texel_by_texel_and_a_gap_is_never_interpolated_a
     np.testing.assert_allclose(refined.results()[0].transfer, smooth(gapped.receiver.positions), rtol=1e-6)
     state = refined.states[0]
     assert not state.interpolated[gapped.x == 31].any()  # its cell's corners lie on both sides of the gap
+
+
+def test_bilinear_sampling_reproduces_a_linear_image_and_clamps_at_its_edges():
+    height, width = 6, 8
+    y, x = np.mgrid[0:height, 0:width]
+    image = np.stack([2.0 * x + 3.0 * y + 1.0, -x + 0.5 * y], axis=-1)  # linear in the texel centres
+    uvs = np.array([[0.3, 0.6], [0.5, 0.5], [(2 + 0.5) / width, (4 + 0.5) / height], [0.0, 0.0], [1.0, 1.0]])
+    sampled = texels.sample_bilinear(image, uvs)
+    inside = uvs[:3] * [width, height] - 0.5
+    np.testing.assert_allclose(sampled[:3, 0], 2.0 * inside[:, 0] + 3.0 * inside[:, 1] + 1.0)
+    np.testing.assert_allclose(sampled[:3, 1], -inside[:, 0] + 0.5 * inside[:, 1])
+    np.testing.assert_allclose(sampled[3], image[0, 0])  # outside the outermost centres: Extend
+    np.testing.assert_allclose(sampled[4], image[-1, -1])
