@@ -151,6 +151,7 @@ class _Candidate:
     uv_map: str = ""
     uvs: np.ndarray | None = None
     probe: np.ndarray | None = None  # (S,) squared interpolation errors at the probes (core.interpolation)
+    layouts: dict = field(default_factory=dict)  # {resolution: the UV map rasterised}
 
     @property
     def needs_probe(self) -> bool:
@@ -166,8 +167,13 @@ class _Candidate:
             self.ob, self.options.uv_map, self.options.new_uv_map, margin_texels=texels.PACK_MARGIN_TEXELS,
             resolution=resolution)
         self.uvs = texel_maps.triangle_uvs(self.ob.data, self.uv_map, self.geometry.loop_triangles)
-        layout = texels.rasterise(self.uvs, resolution, resolution)
-        self._check_layout(layout)
+        self._check_layout(self._layout(resolution))
+
+    def _layout(self, resolution) -> texels.TexelLayout:
+        """The UV map rasterised at this resolution, once (the checks and the choice may ask for the same)."""
+        if self.layouts.get(resolution) is None:
+            self.layouts[resolution] = texels.rasterise(self.uvs, resolution, resolution)
+        return self.layouts[resolution]
 
     def _own_lightmap(self, resolution) -> str | None:
         """Without a chosen map or PRT's own, the object's render UV map where it serves as a lightmap as it is
@@ -211,7 +217,7 @@ class _Candidate:
             decisions.append(f"{name!r}: Auto keeps vertex storage: {said}, within the target {100 * target:g} %")
             return self.surface
         resolution = self._resolution(target, order)
-        layout = texels.rasterise(self.uvs, resolution, resolution)
+        layout = self._layout(resolution)
         self._check_layout(layout)
         why = {"auto": f"Auto stores per texel: {said}, above the target {100 * target:g} %",
                "texel": "Storage Texel"}[self.options.storage]

@@ -92,13 +92,14 @@ def write_maps(mesh, layout: texels.TexelLayout, transfer: np.ndarray, rel_error
     """Packs the coefficient and error images (replacing the mesh's earlier ones) and returns the metadata that
     names them."""
     remove_maps(mesh)
-    padded = np.zeros((len(transfer), 4 * len(image_names(mesh.name, order))), dtype=np.float32)
-    padded[:, : order * order] = transfer
-    images = [_packed_image(name, mesh, texels.to_image(layout, padded[:, 4 * j: 4 * j + 4]))
-              for j, name in enumerate(image_names(mesh.name, order))]
-    error = np.repeat(rel_error.astype(np.float32)[:, None], 4, axis=1)
-    error[:, 3] = 1.0
-    error_image = _packed_image(f"_prt_{mesh.name}_error", mesh, texels.to_image(layout, error))
+    names = image_names(mesh.name, order)
+    rows = np.zeros((len(transfer), 4 * len(names) + 4), dtype=np.float32)  # the coefficient maps', then the error's
+    rows[:, : order * order] = transfer
+    rows[:, -4:-1] = rel_error[:, None]
+    rows[:, -1] = 1.0
+    pixels = texels.to_image(layout, rows)  # one dilation for every map
+    images = [_packed_image(name, mesh, pixels[..., 4 * j: 4 * j + 4]) for j, name in enumerate(names)]
+    error_image = _packed_image(f"_prt_{mesh.name}_error", mesh, pixels[..., -4:])
     return {STORAGE_KEY: TEXEL_STORAGE, "uv_map": uv_map, "width": layout.width, "height": layout.height,
             "texels": len(layout.texels), "gutter": texels.GUTTER_TEXELS,
             "images": [image.name for image in images], "error_image": error_image.name}

@@ -122,17 +122,19 @@ class GridState:
         errs by h²f''/8; one-sided at a border. NaN where a corner has too few known neighbours (the caller falls
         back on the corners' spread)."""
         grid = self.grid
-        x, y = grid.x[corners], grid.y[corners]
-        total = np.zeros(corners.shape)
+        unique, inverse = np.unique(corners, return_inverse=True)  # neighbouring cells share corners: once each
+        x, y = grid.x[unique], grid.y[unique]
+        total = np.zeros(len(unique))
         for dx, dy in ((cell, 0), (0, cell)):
-            second = np.full(corners.shape, np.nan)
+            second = np.full(len(unique), np.nan)
             for first, middle, last in ((-1, 0, 1), (0, 1, 2), (-2, -1, 0)):  # centred, forward, backward
-                rows = [self._known_at(x + k * dx, y + k * dy) for k in (first, middle, last)]
-                usable = np.isnan(second) & (rows[0] >= 0) & (rows[1] >= 0) & (rows[2] >= 0)
+                pending = np.flatnonzero(np.isnan(second))
+                rows = [self._known_at(x[pending] + k * dx, y[pending] + k * dy) for k in (first, middle, last)]
+                usable = (rows[0] >= 0) & (rows[1] >= 0) & (rows[2] >= 0)
                 a, b, c = (self.transfer[r[usable]] for r in rows)
-                second[usable] = np.linalg.norm(a - 2 * b + c, axis=1)
+                second[pending[usable]] = np.linalg.norm(a - 2 * b + c, axis=1)
             total += second
-        return total.max(axis=1) / 8.0
+        return total[inverse.reshape(corners.shape)].max(axis=1) / 8.0
 
     def _known_at(self, x, y) -> np.ndarray:
         """Rows of the known texels at (x, y), −1 outside the map or where nothing is known."""

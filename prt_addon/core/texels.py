@@ -171,27 +171,29 @@ def to_image(layout: TexelLayout, values: np.ndarray, gutter: int = GUTTER_TEXEL
 
 def dilate(image: np.ndarray, covered: np.ndarray, steps: int) -> np.ndarray:
     """Fills uncovered texels next to covered ones with the mean of their covered 8 neighbours, `steps` times,
-    so each island's border values reach `steps` texels into the gutter."""
-    image, covered = image.copy(), covered.copy()
+    so each island's border values reach `steps` texels into the gutter. Only the ring being filled is averaged
+    (a bounded share of the image), so every channel of a map costs little more than its mask."""
     height, width = covered.shape
+    values = image.reshape(height * width, -1).copy()
+    known = np.pad(covered, 1)  # a frame of uncovered texels: no neighbour test runs off the image
+    neighbours = [(dy, dx) for dy in (-1, 0, 1) for dx in (-1, 0, 1) if dx or dy]
     for _ in range(steps):
-        total = np.zeros_like(image, dtype=np.float64)
-        count = np.zeros(covered.shape, dtype=np.int64)
-        padded_image = np.pad(image, ((1, 1), (1, 1), (0, 0)))
-        padded_covered = np.pad(covered, 1)
-        for dy in (-1, 0, 1):
-            for dx in (-1, 0, 1):
-                if dx or dy:
-                    window = (slice(1 + dy, 1 + dy + height), slice(1 + dx, 1 + dx + width))
-                    near = padded_covered[window]
-                    total += np.where(near[..., None], padded_image[window], 0.0)
-                    count += near
-        fill = ~covered & (count > 0)
-        if not fill.any():
+        near = np.zeros((height, width), dtype=bool)
+        for dy, dx in neighbours:
+            near |= known[1 + dy: 1 + dy + height, 1 + dx: 1 + dx + width]
+        fill_y, fill_x = np.nonzero(near & ~known[1:-1, 1:-1])
+        if not len(fill_y):
             break
-        image[fill] = (total[fill] / count[fill][:, None]).astype(image.dtype)
-        covered |= fill
-    return image
+        total = np.zeros((len(fill_y), values.shape[1]))
+        count = np.zeros(len(fill_y))
+        for dy, dx in neighbours:
+            y, x = fill_y + dy, fill_x + dx
+            source = known[y + 1, x + 1]
+            total[source] += values[y[source] * width + x[source]]
+            count += source
+        values[fill_y * width + fill_x] = (total / count[:, None]).astype(values.dtype)
+        known[fill_y + 1, fill_x + 1] = True
+    return values.reshape(image.shape)
 
 
 def from_image(layout: TexelLayout, image: np.ndarray) -> np.ndarray:
