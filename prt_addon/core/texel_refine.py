@@ -12,8 +12,11 @@ A texel is interpolated (bilinearly, from the corners of the coarser lattice's c
   few known neighbours, the corners' spread about the interpolated value stands in, which is stricter). So a shadow's edge or a wall's base,
   where the transfer bends, is baked texel by texel, while a smooth or linear stretch is interpolated. A feature
   lying wholly between two texels of the coarsest lattice (about 1/32 of the map) can be missed.
-The estimate of an interpolated texel is its corners' noise (weighted) and that interpolation error, added in
-quadrature: what interpolation may have missed is counted, not hidden.
+The estimate of an interpolated texel holds two parts, added in quadrature: noise, its corners' Monte Carlo noise
+weighted as bilinear interpolation averages independent errors (√Σw²σ²), and bias, what interpolating may have
+missed: the bound above plus its corners' own bias, weighted linearly (Σw·b), since the texels interpolated from one
+coarser cell share its error rather than averaging it away. What interpolation may have missed is counted, not
+hidden.
 """
 
 from dataclasses import dataclass
@@ -51,6 +54,8 @@ class GridState:
         self.index[grid.y, grid.x] = np.arange(count)
         self.transfer = np.zeros((count, order * order))
         self.std_error = np.zeros(count)
+        self.noise = np.zeros(count)  # the independent part of std_error
+        self.bias = np.zeros(count)   # the part interpolation shares with its neighbours
         self.rays = np.zeros(count, dtype=np.int64)
         self.skipped = np.zeros(count, dtype=bool)
         self.known = np.zeros(count, dtype=bool)
@@ -70,7 +75,8 @@ class GridState:
 
     def store(self, rows, result):
         self.transfer[rows] = result.transfer
-        self.std_error[rows] = result.std_error
+        self.std_error[rows] = self.noise[rows] = result.std_error
+        self.bias[rows] = 0.0
         self.rays[rows] = result.rays
         self.skipped[rows] = result.skipped
         self.known[rows] = True
@@ -89,13 +95,16 @@ class GridState:
         bend = self._bend(corners, 2 * stride)
         spread = np.linalg.norm(self.transfer[corners] - value[:, None], axis=2).max(axis=1)
         interpolation = np.where(np.isnan(bend), spread, bend) / scale
-        noise = np.sqrt(np.einsum("mc,mc->m", weights ** 2, self.std_error[corners] ** 2))
-        corner_noise = self.std_error[corners].max(axis=1) / scale
+        noise = np.sqrt(np.einsum("mc,mc->m", weights ** 2, self.noise[corners] ** 2))
+        inherited = np.einsum("mc,mc->m", weights, self.bias[corners])
+        corner_noise = self.noise[corners].max(axis=1) / scale
         smooth = self._smooth(candidates, corners, weights)
         chosen = smooth & (interpolation <= AGREEMENT * target + NOISE_ALLOWANCE * corner_noise)
         taken = candidates[chosen]
         self.transfer[taken] = value[chosen]
-        self.std_error[taken] = np.hypot(noise[chosen], interpolation[chosen] * scale)
+        self.noise[taken] = noise[chosen]
+        self.bias[taken] = inherited[chosen] + interpolation[chosen] * scale
+        self.std_error[taken] = np.hypot(self.noise[taken], self.bias[taken])
         self.known[taken] = self.interpolated[taken] = True
         return np.setdiff1d(rows, taken)
 
