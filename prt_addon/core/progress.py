@@ -111,11 +111,17 @@ class JobSequence(Job):
         self.jobs = jobs
         self.shares = [share / sum(shares) for share in shares]
         self.current = 0
+        self._started = 0  # jobs begun
         self.progress = Progress(label)
 
     def step(self, budget_s: float) -> bool:
-        if self.current < len(self.jobs) and self.jobs[self.current].step(budget_s):
-            self.current += 1
+        if self.current < len(self.jobs):
+            job = self.jobs[self.current]
+            if self.current == self._started:  # its clock runs from its first step, not from when it was made
+                job.progress.start = job.progress.clock()
+                self._started += 1
+            if job.step(budget_s):
+                self.current += 1
         running = self.jobs[self.current].progress.fraction if self.current < len(self.jobs) else 0.0
         self.progress.fraction = sum(self.shares[:self.current]) + (
             self.shares[self.current] * running if self.current < len(self.jobs) else 0.0)
