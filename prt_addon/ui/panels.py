@@ -56,16 +56,20 @@ class PRT_PT_bake(SidebarPanel, bpy.types.Panel):
             layout.operator("prt.export_gltf", icon="EXPORT")
 
 
-class PRT_PT_storage(SidebarPanel, bpy.types.Panel):
-    """Where the active object's transfer is stored: per vertex, per texel, or Auto."""
-    bl_label = "Storage"
-    bl_idname = "PRT_PT_storage"
-    bl_parent_id = "PRT_PT_bake"
+class ActiveMeshPanel(SidebarPanel):
+    """A panel about the active object, shown while it is a mesh."""
 
     @classmethod
     def poll(cls, context):
         ob = context.active_object
         return ob is not None and ob.type == "MESH"
+
+
+class PRT_PT_storage(ActiveMeshPanel, bpy.types.Panel):
+    """Where the active object's transfer is stored: per vertex, per texel, or Auto."""
+    bl_label = "Storage"
+    bl_idname = "PRT_PT_storage"
+    bl_parent_id = "PRT_PT_bake"
 
     def draw(self, context):
         layout = self.layout
@@ -85,16 +89,11 @@ class PRT_PT_storage(SidebarPanel, bpy.types.Panel):
         sub.prop(ob, "prt_new_uv_map")
 
 
-class PRT_PT_bake_info(SidebarPanel, bpy.types.Panel):
+class PRT_PT_bake_info(ActiveMeshPanel, bpy.types.Panel):
     """What is stored on the active object: how, when, and how accurate."""
     bl_label = "Stored Bake"
     bl_idname = "PRT_PT_bake_info"
     bl_parent_id = "PRT_PT_bake"
-
-    @classmethod
-    def poll(cls, context):
-        ob = context.active_object
-        return ob is not None and ob.type == "MESH"
 
     def draw(self, context):
         layout = self.layout
