@@ -3,7 +3,6 @@ stored as a one-process bake stores it."""
 
 from dataclasses import asdict
 import os
-import time
 
 import bpy
 
@@ -13,16 +12,16 @@ from ..core.errors import InputError
 from .scene_bake import SceneBake
 
 
-def bake_shard(context, settings: BakeSettings, names, shard, out: str, workers: int = 1, log=None) -> shards.PartInfo:
-    """Bakes shard (K, N) of the scene's bake and writes its part file; nothing in the scene changes."""
-    start_s, start_cpu_s = time.perf_counter(), _cpu_seconds()
+def bake_shard(context, settings: BakeSettings, names, shard, out: str, stopwatch: shards.Stopwatch,
+               workers: int = 1, log=None) -> shards.PartInfo:
+    """Bakes shard (K, N) of the scene's bake and writes its part file, its seconds read from `stopwatch` (started
+    with the command); nothing in the scene changes."""
     scene_bake = SceneBake(context, settings, names, workers=workers, shard=shard)
     scene_bake.job.run(log=log)
     results = scene_bake.job.shard_results
     info = part_info(scene_bake, shard)
-    info.time_s, info.cpu_s = time.perf_counter() - start_s, _cpu_seconds() - start_cpu_s
     info.rays = int(sum(int(result.rays.sum()) for result in results.values()))
-    shards.write_part(out, info, results)
+    shards.write_part(out, info, results, stopwatch)
     return info
 
 
@@ -50,9 +49,3 @@ def part_info(scene_bake: SceneBake, shard) -> shards.PartInfo:
         scene=os.path.basename(bpy.data.filepath), surfaces=[s.receiver.name for s in scene_bake.surfaces.all],
         receivers=[ob.name for ob in scene_bake.objects], settings=asdict(scene_bake.settings),
         fingerprints=scene_bake.fingerprints)
-
-
-def _cpu_seconds() -> float:
-    """CPU time of this process and its finished children (forked bake workers)."""
-    times = os.times()
-    return times.user + times.system + times.children_user + times.children_system

@@ -59,15 +59,19 @@ def load_job(path):
 def save_results(out_file, results, **extra):
     """Saves (chunk index, ChunkResult) pairs, and `extra` arrays, where load_results reads them: a path, or an
     open binary file (np.savez adds no '.npz' to it)."""
-    arrays = {}
+    np.savez(out_file, **result_arrays(results), **extra)
+
+
+def result_arrays(results) -> dict:
+    """The arrays save_results saves for (chunk index, ChunkResult) pairs, by name."""
+    arrays = {"chunks": np.array([chunk_index for chunk_index, _ in results], dtype=np.int64)}
     for slot, (_, result) in enumerate(results):
         for name in ("transfer", "std_error", "rays", "skipped"):
             arrays[f"{name}_{slot}"] = getattr(result, name)
         if result.records is not None:
             for name in interreflect.HitRecords.FIELDS:
                 arrays[f"records_{name}_{slot}"] = getattr(result.records, name)
-    chunks = np.array([chunk_index for chunk_index, _ in results], dtype=np.int64)
-    np.savez(out_file, chunks=chunks, **arrays, **extra)
+    return arrays
 
 
 def load_results(path) -> list[tuple[int, bake.ChunkResult]]:

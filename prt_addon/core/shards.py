@@ -10,10 +10,12 @@ receivers, the settings, each receiver's fingerprint, and the shard's seconds (w
 """
 
 from collections import Counter
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
 import json
 import os
 import tempfile
+import time
+import zipfile
 
 import numpy as np
 
@@ -34,8 +36,8 @@ class PartInfo:
     receivers: list        # the surfaces stored on their objects
     settings: dict         # core.bake.BakeSettings' fields
     fingerprints: dict     # receiver → part → digest (blender.fingerprint)
-    time_s: float = 0.0
-    cpu_s: float = 0.0     # this process and its workers
+    time_s: float = 0.0    # the bake command's seconds, from its start to the part written (Stopwatch)
+    cpu_s: float = 0.0     # the same span's CPU seconds: this process and its workers
     rays: int = 0
 
     def same_bake(self) -> tuple:
@@ -54,20 +56,44 @@ def shard_of(text: str) -> tuple[int, int]:
     return shard, shards
 
 
-def write_part(path: str, info: PartInfo, chunk_results) -> None:
+def cpu_seconds() -> float:
+    """CPU time of this process and its finished children (forked bake workers)."""
+    times = os.times()
+    return times.user + times.system + times.children_user + times.children_system
+
+
+@dataclass
+class Stopwatch:
+    """Started with a shard's command (before its file is opened); a part's seconds are read from it."""
+    wall_s: float = field(default_factory=time.perf_counter)
+    cpu_s: float = field(default_factory=cpu_seconds)
+
+    def elapsed(self) -> tuple[float, float]:
+        return time.perf_counter() - self.wall_s, cpu_seconds() - self.cpu_s
+
+
+def write_part(path: str, info: PartInfo, chunk_results, stopwatch: Stopwatch) -> None:
     """Writes the part atomically (a temporary file in the same folder, renamed over `path`), creating the folder:
-    a farm that kills a shard midway, or retries it, never leaves half a part."""
+    a farm that kills a shard midway, or retries it, never leaves half a part. The chunks' arrays go first and
+    the description last, so its seconds (info.time_s, cpu_s, read from `stopwatch`) include writing them."""
     folder = os.path.dirname(os.path.abspath(path))
     os.makedirs(folder, exist_ok=True)
     handle, temporary = tempfile.mkstemp(prefix=".prt_part_", suffix=".partial", dir=folder)
     try:
-        with os.fdopen(handle, "wb") as out:
-            job_file.save_results(out, sorted(chunk_results.items()),
-                                  part=np.array(json.dumps({"format": PART_FORMAT, **asdict(info)})))
+        with os.fdopen(handle, "wb") as out, zipfile.ZipFile(out, "w") as archive:  # np.savez's layout
+            for name, array in job_file.result_arrays(sorted(chunk_results.items())).items():
+                _write_array(archive, name, array)
+            info.time_s, info.cpu_s = stopwatch.elapsed()
+            _write_array(archive, "part", np.array(json.dumps({"format": PART_FORMAT, **asdict(info)})))
         os.replace(temporary, path)
     except BaseException:
         os.unlink(temporary)
         raise
+
+
+def _write_array(archive: zipfile.ZipFile, name: str, array: np.ndarray):
+    with archive.open(name + ".npy", "w", force_zip64=True) as entry:
+        np.lib.format.write_array(entry, np.asanyarray(array), allow_pickle=False)
 
 
 def part_paths(given) -> list[str]:

@@ -1,6 +1,9 @@
 """Farm shards without Blender: which chunks each shard bakes, part files written and read back, and the merge's
 refusals, each naming what is wrong."""
 
+from dataclasses import replace
+import time
+
 import numpy as np
 import pytest
 
@@ -42,9 +45,11 @@ def test_shard_of_reads_k_of_n_from_1_to_n():
 def test_a_part_is_written_atomically_into_a_new_folder_and_reads_back(tmp_path):
     result = ChunkResult(np.arange(6.0).reshape(2, 3), np.ones(2), np.array([4, 5]), np.array([False, True]))
     path = tmp_path / "new" / "folder" / "part.npz"
-    shards.write_part(str(path), info(2), {5: result, 1: result})
+    started = shards.Stopwatch(time.perf_counter() - 10.0, shards.cpu_seconds() - 2.0)  # a command 10 s ago
+    shards.write_part(str(path), info(2), {5: result, 1: result}, started)
     read, chunks = shards.read_part(str(path))
-    assert read == info(2) and chunks == [1, 5]
+    assert chunks == [1, 5] and 10.0 <= read.time_s < 60.0 and 2.0 <= read.cpu_s < 60.0
+    assert replace(read, time_s=0.0, cpu_s=0.0) == info(2)
     (index, loaded), _ = shards.load_chunks(str(path))
     assert index == 1 and np.array_equal(loaded.transfer, result.transfer) and loaded.records is None
     assert [p.name for p in path.parent.iterdir()] == ["part.npz"]
