@@ -129,14 +129,15 @@ class SceneBake(WrappingJob):
                                    spec.worker_count(workers), worker_launch(),
                                    albedo=_albedo_channels([s.albedo for s in solved]) if bouncing else None,
                                    shard=shard)
-        self.probes, self.probe_job = self._probe_job(occluders, spec.worker_count(workers))
+        self.probes, self.probe_job = self._probe_job(occluders, spec.worker_count(workers), shard)
         self.sequence = JobSequence([self.job, self.probe_job],
                                     [self.job.total_vertices, max(1, self.probe_job.total_vertices)], "PRT bake")
         self.summary = None
 
-    def _probe_job(self, occluders, workers):
+    def _probe_job(self, occluders, workers, shard):
         """Points inside the receivers' faces, baked after them to measure what storage per vertex loses between
-        vertices (core.interpolation); an interreflected bake's probes measure its direct transfer."""
+        vertices (core.interpolation); an interreflected bake's probes measure its direct transfer. A farm shard
+        bakes its share of their chunks too, so the merge casts no ray."""
         probes = {surface.receiver.name: interpolation.face_probes(
                       surface.triangles, surface.receiver.positions, surface.receiver.normals,
                       interpolation.probe_count(_vertex_count(surface)), self.settings.seed)
@@ -145,7 +146,7 @@ class SceneBake(WrappingJob):
         receivers = [bake.Receiver(name, found.positions, found.normals, bake.Receiver.key_for(name + " probes"))
                      for name, found in probes.items()]
         settings = replace(self.settings, mode="shadowed") if self.settings.mode == "interreflected" else self.settings
-        return probes, job.TransferJob(receivers, occluders, settings, workers, worker_launch())
+        return probes, job.TransferJob(receivers, occluders, settings, workers, worker_launch(), shard=shard)
 
     def _bouncing_surfaces(self, context, depsgraph, receiver_names):
         found = []
