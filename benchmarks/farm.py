@@ -1,13 +1,23 @@
-"""Farm bakes, measured side by side in one run on the demo scene (order 4, shadowed, 256 rays per vertex):
+"""Farm bakes, measured side by side in one run on the demo scene (order 4, shadowed):
 
 1. Shards' fixed work: the CPU time of the 4 processes of `prt bake --shard K/4` summed ÷ one process baking the
-   whole scene, `--shard 1/4`'s twin `--shard 1/1` (the same command with the same fixed work: starting Python and
-   bpy, opening the file, gathering the scene, building the ray tree). Twice: whole processes, and the bake alone
-   (the part's CPU seconds: from gathering to the part written). The merge's CPU time is printed beside them.
+   whole scene, `--shard 1/4`'s twin `--shard 1/1` (the same command with the same fixed work), each command's
+   median CPU over SHARD_ROUNDS alternated rounds. Three figures:
+   (a) whole processes at 256 rays per vertex; (b) the bake commands alone at 256 rays, from the command's start
+   inside its process to its part written (the part's cpu_s: the file opened, the scene gathered, the ray tree
+   built, the bake, the part written: all the fixed work that is ours), which the goal judges; (c) whole processes
+   at 1,024 rays per vertex (the issue's farm-scale premise). Beside them the CPU of starting Python and the bpy
+   module alone (`python -c "import bpy"`), which each process of (a) and (c) pays and (b) leaves out, and the
+   merge's CPU.
 2. Dask: the wall time of `prt bake --dask local:2` (a LocalCluster of 2 workers, its start and the merge
    included) ÷ `prt bake --workers 1`, alternated DASK_REPEATS times, the median of the paired ratios (other
-   tenants' load cancels in a pair); whether both stored the same bits; and a machine check: how much longer two
-   CPU-bound processes take together than one alone (0.5 on two free cores; other tenants raise it).
+   tenants' load cancels in a pair); whether both stored the same bits; and after each pair a machine check: how
+   much longer two CPU-bound processes take together than one alone (0.5 on two free cores; other tenants raise
+   it).
+
+Every process runs with one BLAS thread (OPENBLAS_NUM_THREADS=1, as the README's farm section asks of farm tasks):
+with OpenBLAS's default of one thread per core its idle helper thread busy-waits beside the bake, which doubles a
+one-process bake's CPU seconds here without making it faster, and would count as work in (a)-(c).
 
 Run from the repository root:  .venv/bin/python benchmarks/farm.py [--json PATH]
 """
@@ -30,19 +40,26 @@ import numpy as np  # noqa: E402
 from prt_addon.blender import sample_scenes, storage  # noqa: E402
 
 SETTINGS = ["--order", "4", "--mode", "shadowed", "--samples", "256", "--workers", "1"]
+FARM_SCALE_SAMPLES = 1024
 SHARDS = 4
+SHARD_ROUNDS = 3
+ENVIRONMENT = dict(os.environ, PYTHONPATH=ROOT, OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1", MKL_NUM_THREADS="1")
 DASK_REPEATS = 3
 GOALS = {"shards_cpu_sum_to_one": 1.15, "dask_2_workers_to_one_wall": 0.65}
 
 
 def prt(*arguments) -> tuple[float, float]:
     """Runs `python -m prt_addon ...` to its end; (wall seconds, CPU seconds of the process and its children)."""
+    return timed([sys.executable, "-m", "prt_addon", *map(str, arguments)])
+
+
+def timed(command) -> tuple[float, float]:
+    """Runs the command to its end; (wall seconds, CPU seconds of the process and its children)."""
     before, start = resource.getrusage(resource.RUSAGE_CHILDREN), time.perf_counter()
-    finished = subprocess.run([sys.executable, "-m", "prt_addon", *map(str, arguments)], capture_output=True,
-                              text=True, env=dict(os.environ, PYTHONPATH=ROOT))
+    finished = subprocess.run(command, capture_output=True, text=True, env=ENVIRONMENT)
     wall, after = time.perf_counter() - start, resource.getrusage(resource.RUSAGE_CHILDREN)
     if finished.returncode != 0:
-        sys.exit(f"prt {' '.join(map(str, arguments))} failed: {finished.stderr.strip()}")
+        sys.exit(f"{' '.join(command)} failed: {finished.stderr.strip()}")
     return wall, (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
 
 
@@ -59,32 +76,44 @@ def demo_file(folder) -> str:
     return path
 
 
-def shards_cpu(folder, scene) -> dict:
-    one_part = os.path.join(folder, "whole.npz")
-    _, one_process_cpu = prt("bake", scene, "--shard", "1/1", "--out", one_part, *SETTINGS)
-    parts, process_cpu = [], []
-    for shard in range(1, SHARDS + 1):
-        parts.append(os.path.join(folder, f"part-{shard}.npz"))
-        process_cpu.append(prt("bake", scene, "--shard", f"{shard}/{SHARDS}", "--out", parts[-1], *SETTINGS)[1])
-    _, merge_cpu = prt("merge", scene, *parts, "--output", os.path.join(folder, "merged.blend"))
+def shards_cpu(folder, scene, samples: int) -> dict:
+    """The one process and the 4 shards, alternated SHARD_ROUNDS times: each command's median CPU seconds (other
+    tenants' load, which slows a process's CPU too, then falls on both sides alike)."""
+    settings = [*SETTINGS[:SETTINGS.index("--samples") + 1], samples, *SETTINGS[SETTINGS.index("--samples") + 2:]]
+    shards = ["1/1"] + [f"{shard}/{SHARDS}" for shard in range(1, SHARDS + 1)]
+    parts = [os.path.join(folder, f"part-{shard.replace('/', '-of-')}-{samples}.npz") for shard in shards]
+    process_cpu, bake_cpu = [[] for _ in shards], [[] for _ in shards]
+    for _ in range(SHARD_ROUNDS):
+        for index, (shard, part) in enumerate(zip(shards, parts)):
+            process_cpu[index].append(prt("bake", scene, "--shard", shard, "--out", part, *settings)[1])
+            bake_cpu[index].append(part_cpu_s(part))
+    _, merge_cpu = prt("merge", scene, *parts[1:], "--output", os.path.join(folder, "merged.blend"))
+    process_cpu, bake_cpu = np.median(process_cpu, axis=1).tolist(), np.median(bake_cpu, axis=1).tolist()
     return {
-        "one_process_cpu_s": one_process_cpu, "shard_process_cpu_s": process_cpu,
-        "shards_cpu_sum_to_one": sum(process_cpu) / one_process_cpu,
-        "one_bake_cpu_s": part_cpu_s(one_part), "shard_bake_cpu_s": [part_cpu_s(part) for part in parts],
-        "shard_bakes_cpu_sum_to_one": sum(map(part_cpu_s, parts)) / part_cpu_s(one_part),
+        "samples": samples, "rounds": SHARD_ROUNDS,
+        "one_process_cpu_s": process_cpu[0], "shard_process_cpu_s": process_cpu[1:],
+        "shards_cpu_sum_to_one": sum(process_cpu[1:]) / process_cpu[0],
+        "one_bake_cpu_s": bake_cpu[0], "shard_bake_cpu_s": bake_cpu[1:],
+        "shard_bakes_cpu_sum_to_one": sum(bake_cpu[1:]) / bake_cpu[0],
         "merge_process_cpu_s": merge_cpu,
     }
 
 
+def start_up_cpu_s() -> float:
+    """The CPU seconds of starting Python and importing the bpy module, nothing else: the median of three."""
+    return float(np.median([timed([sys.executable, "-c", "import bpy"])[1] for _ in range(3)]))
+
+
 def dask_wall(folder, scene) -> dict:
     one, on_dask = os.path.join(folder, "one.blend"), os.path.join(folder, "dask.blend")
-    one_wall, dask_wall_s = [], []
+    one_wall, dask_wall_s, checks = [], [], []
     for _ in range(DASK_REPEATS):
         one_wall.append(prt("bake", scene, *SETTINGS, "--output", one)[0])
         dask_wall_s.append(prt("bake", scene, *SETTINGS, "--dask", "local:2", "--output", on_dask)[0])
+        checks.append(machine_check())
     return {"one_process_wall_s": one_wall, "dask_2_workers_wall_s": dask_wall_s,
             "dask_2_workers_to_one_wall": float(np.median(np.divide(dask_wall_s, one_wall))),
-            "bit_identical": stored_transfer(one) == stored_transfer(on_dask), "machine_check": machine_check()}
+            "bit_identical": stored_transfer(one) == stored_transfer(on_dask), "machine_check": checks}
 
 
 def stored_transfer(path) -> dict:
@@ -111,25 +140,35 @@ def main():
     args = parser.parse_args()
     with tempfile.TemporaryDirectory(prefix="prt_farm_bench_") as folder:
         scene = demo_file(folder)
-        results = {"shards": shards_cpu(folder, scene), "dask": dask_wall(folder, scene)}
-    shards, dask = results["shards"], results["dask"]
-    print(f"demo scene, order 4 shadowed, 256 rays per vertex; {os.cpu_count()} cores")
-    print(f"1. shards' CPU, {SHARDS} shards ÷ one process ({GOALS['shards_cpu_sum_to_one']:.2f} goal):")
-    print(f"   whole processes  {sum(shards['shard_process_cpu_s']):6.2f} s ÷ {shards['one_process_cpu_s']:6.2f} s"
-          f" = {shards['shards_cpu_sum_to_one']:.3f}  {verdict(shards['shards_cpu_sum_to_one'], 'shards_cpu_sum_to_one')}"
-          f"   (each {', '.join(f'{s:.2f}' for s in shards['shard_process_cpu_s'])} s)")
-    print(f"   the bakes alone  {sum(shards['shard_bake_cpu_s']):6.2f} s ÷ {shards['one_bake_cpu_s']:6.2f} s"
-          f" = {shards['shard_bakes_cpu_sum_to_one']:.3f}   (gathering to part written)")
-    print(f"   merge process    {shards['merge_process_cpu_s']:6.2f} s CPU")
+        results = {"start_up_cpu_s": start_up_cpu_s(), "shards": shards_cpu(folder, scene, 256),
+                   "shards_farm_scale": shards_cpu(folder, scene, FARM_SCALE_SAMPLES),
+                   "dask": dask_wall(folder, scene)}
+    shards, farm_scale, dask = results["shards"], results["shards_farm_scale"], results["dask"]
+    print(f"demo scene, order 4 shadowed; {os.cpu_count()} cores; one BLAS thread per process")
+    print(f"1. shards' CPU, {SHARDS} shards ÷ one process ({GOALS['shards_cpu_sum_to_one']:.2f} goal, judged on (b)), "
+          f"medians of {SHARD_ROUNDS} alternated rounds:")
+    print(f"   (a) whole processes, 256 rays    {whole(shards)}")
+    print(f"   (b) bake commands, 256 rays      {sum(shards['shard_bake_cpu_s']):6.2f} s ÷ {shards['one_bake_cpu_s']:6.2f} s"
+          f" = {shards['shard_bakes_cpu_sum_to_one']:.3f}  {verdict(shards['shard_bakes_cpu_sum_to_one'], 'shards_cpu_sum_to_one')}"
+          f"   (each {seconds(shards['shard_bake_cpu_s'])}; from the command's start to its part written)")
+    print(f"   (c) whole processes, {FARM_SCALE_SAMPLES} rays  {whole(farm_scale)}")
+    print(f"   Python + bpy start-up alone      {results['start_up_cpu_s']:6.2f} s CPU per process, in (a) and (c), "
+          f"not in (b); merge process {shards['merge_process_cpu_s']:.2f} s CPU (256 rays)")
     print(f"2. Dask LocalCluster, 2 workers ÷ one process, wall ({GOALS['dask_2_workers_to_one_wall']:.2f} goal), "
           f"median of {DASK_REPEATS} pairs: {dask['dask_2_workers_to_one_wall']:.3f}  "
           f"{verdict(dask['dask_2_workers_to_one_wall'], 'dask_2_workers_to_one_wall')}")
-    print(f"   Dask {seconds(dask['dask_2_workers_wall_s'])}; one process {seconds(dask['one_process_wall_s'])}")
-    print(f"   bit-identical: {dask['bit_identical']}; machine check (two processes ÷ one, 0.5 on free cores): "
-          f"{dask['machine_check']:.2f}")
+    print(f"   Dask {seconds(dask['dask_2_workers_wall_s'])}; one process {seconds(dask['one_process_wall_s'])}; "
+          f"ratios {', '.join(f'{d / o:.3f}' for d, o in zip(dask['dask_2_workers_wall_s'], dask['one_process_wall_s']))}")
+    print(f"   machine check after each pair (two processes ÷ one, 0.5 on free cores): "
+          f"{', '.join(f'{check:.2f}' for check in dask['machine_check'])}; bit-identical: {dask['bit_identical']}")
     if args.json:
         with open(args.json, "w", encoding="utf-8") as out:
             json.dump(results, out, indent=2)
+
+
+def whole(shards: dict) -> str:
+    return (f"{sum(shards['shard_process_cpu_s']):6.2f} s ÷ {shards['one_process_cpu_s']:6.2f} s = "
+            f"{shards['shards_cpu_sum_to_one']:.3f}   (each {seconds(shards['shard_process_cpu_s'])})")
 
 
 def seconds(values) -> str:

@@ -224,7 +224,7 @@ def test_merge_refuses_an_unwritable_output_before_any_work_and_reads_a_parts_fo
     assert (tmp_path / "new" / "out.blend").exists()
 
 
-def test_bad_shards_exit_1_with_one_line_and_write_no_part(scenes, tmp_path):
+def test_bad_shards_exit_1_with_one_line_and_write_no_part(addon, scenes, tmp_path):
     part = tmp_path / "part.npz"
     for shard in ("4/3", "0/3", "two/3", "1/2/3"):
         refused(run_cli("bake", scenes["room"], "--shard", shard, "--out", part), "--shard", nothing_at=[part])
@@ -234,6 +234,15 @@ def test_bad_shards_exit_1_with_one_line_and_write_no_part(scenes, tmp_path):
     (tmp_path / "file").write_text("")
     refused(run_cli("bake", scenes["room"], "--shard", "1/2", "--out", tmp_path / "file" / "part.npz"),
             "cannot write")
+    # Texel and Auto storage bake on one machine: the command line's choice and an object's own are refused.
+    refused(run_cli("bake", scenes["room"], "--shard", "1/2", "--out", part, "--storage", "texel"),
+            "farm bakes store per vertex", nothing_at=[part])
+    auto = tmp_path / "auto.blend"
+    bpy.ops.wm.open_mainfile(filepath=str(scenes["room"]), load_ui=False)
+    bpy.data.objects["Floor"].prt_storage = "auto"
+    bpy.ops.wm.save_as_mainfile(filepath=str(auto))
+    refused(run_cli("bake", auto, "--shard", "1/2", "--out", part), "'Floor': Storage Texel or Auto bakes on one "
+            "machine", nothing_at=[part])
     # A shard that fails (here: no such file) exits non-zero, so the farm retries it.
     refused(run_cli("bake", tmp_path / "missing.blend", "--shard", "1/2", "--out", part), "no such file",
             nothing_at=[part])

@@ -3,7 +3,6 @@ stored as a one-process bake stores it."""
 
 from dataclasses import asdict
 import os
-import time
 
 import bpy
 
@@ -13,16 +12,16 @@ from ..core.errors import InputError
 from .scene_bake import SceneBake
 
 
-def bake_shard(context, settings: BakeSettings, names, shard, out: str, workers: int = 1, log=None) -> shards.PartInfo:
-    """Bakes shard (K, N) of the scene's bake and writes its part file; nothing in the scene changes."""
-    start_s, start_cpu_s = time.perf_counter(), _cpu_seconds()
+def bake_shard(context, settings: BakeSettings, names, shard, out: str, stopwatch: shards.Stopwatch,
+               workers: int = 1, log=None) -> shards.PartInfo:
+    """Bakes shard (K, N) of the scene's bake and writes its part file, its seconds read from `stopwatch` (started
+    with the command); nothing in the scene changes."""
     scene_bake = SceneBake(context, settings, names, workers=workers, shard=shard)
-    scene_bake.job.run(log=log)
-    results = scene_bake.job.shard_results
+    scene_bake.sequence.run(log=log)  # its vertices' chunks and its probes'
+    results, probe_results = scene_bake.job.shard_results, scene_bake.probe_job.shard_results
     info = part_info(scene_bake, shard)
-    info.time_s, info.cpu_s = time.perf_counter() - start_s, _cpu_seconds() - start_cpu_s
-    info.rays = int(sum(int(result.rays.sum()) for result in results.values()))
-    shards.write_part(out, info, results)
+    info.rays = int(sum(int(result.rays.sum()) for result in [*results.values(), *probe_results.values()]))
+    shards.write_part(out, info, results, probe_results, stopwatch)
     return info
 
 
@@ -33,12 +32,14 @@ def merge_parts(context, paths, log=None) -> SceneBake:
         raise InputError("no part files to merge")
     parts = [(path, *shards.read_part(path)) for path in shards.part_paths(paths)]
     chosen = shards.chosen_bake([info for _, info, _ in parts])
-    scene_bake = SceneBake(context, BakeSettings(**chosen.settings), chosen.receivers)
+    scene_bake = SceneBake(context, BakeSettings(**chosen.settings), chosen.receivers, farm=True)
     problems = shards.refusals(parts, part_info(scene_bake, (0, chosen.shards)))
     if problems:
         raise InputError("cannot merge: " + "; ".join(problems) + "; nothing was written")
     scene_bake.job.take_parts((result for path, _, _ in parts for result in shards.load_chunks(path)),
                               sum(info.time_s for _, info, _ in parts))
+    scene_bake.probe_job.take_parts(result for path, _, _ in parts
+                                    for result in shards.load_chunks(path, shards.PROBES))
     scene_bake.run(log=log)
     return scene_bake
 
@@ -47,12 +48,7 @@ def part_info(scene_bake: SceneBake, shard) -> shards.PartInfo:
     """What a part says of the bake it belongs to, for this scene as it is now."""
     return shards.PartInfo(
         shard=shard[0], shards=shard[1], chunks=len(scene_bake.job.chunks),
+        probe_chunks=len(scene_bake.probe_job.chunks),
         scene=os.path.basename(bpy.data.filepath), surfaces=[s.receiver.name for s in scene_bake.surfaces.all],
         receivers=[ob.name for ob in scene_bake.objects], settings=asdict(scene_bake.settings),
         fingerprints=scene_bake.fingerprints)
-
-
-def _cpu_seconds() -> float:
-    """CPU time of this process and its finished children (forked bake workers)."""
-    times = os.times()
-    return times.user + times.system + times.children_user + times.children_system

@@ -89,9 +89,10 @@ class SceneBake(WrappingJob):
     receivers: core.texel_refine), then stores everything at once (its outcome)."""
 
     def __init__(self, context, settings: bake.BakeSettings, object_names=None, workers: int = 1,
-                 storage_options=None, shard=None):
+                 storage_options=None, shard=None, farm: bool = False):
         """storage_options: texel_bake.TexelOptions fields that override every receiver's own (the command
-        line's). `shard` (K, N): the job bakes only farm shard K's chunks, for a part file (blender.farm)."""
+        line's). `shard` (K, N): the job bakes only farm shard K's chunks, for a part file (blender.farm); `farm`: the
+        merge of such parts. A farm bake stores every receiver per vertex."""
         problems = settings.problems()
         if problems:
             raise InputError("; ".join(problems))
@@ -128,6 +129,8 @@ class SceneBake(WrappingJob):
             if sources <= {ob.name for ob in self.objects}:
                 self.notes.append("no visible mesh besides the receivers casts shadows; "
                                   "each receiver is shadowed by the receivers only")
+        if farm or shard is not None:
+            texel_bake.refuse_on_farm(self.objects, storage_options or {})
         coloured = bouncing and _albedo_channels([s.albedo for s in self.surfaces.all])[0].shape[1] > 1
         planned = texel_bake.plan(self.objects, receivers, occluders, settings, storage_options or {}, depsgraph,
                                   self.problems, coloured)
@@ -138,13 +141,6 @@ class SceneBake(WrappingJob):
         self.plan = planned  # with Auto's probes, baked before the bake
         self.notes += planned.decisions
         solved = self.surfaces.all
-        if shard is not None:
-            texel_objects = [ob.name for ob, surface in zip(self.objects, self.surfaces.receivers)
-                             if isinstance(surface, texel_bake.TexelSurface)]
-            if texel_objects:
-                # A texel bake refines lattice by lattice, each step deciding from the whole previous lattice.
-                raise InputError(f"{', '.join(map(repr, texel_objects))} store per texel, and texel bakes run on one "
-                                 f"machine: bake them without --shard, or with Storage Vertex")
         albedo = _albedo_channels([s.albedo for s in solved]) if bouncing else None
         count = spec.worker_count(workers)
 
@@ -154,16 +150,17 @@ class SceneBake(WrappingJob):
         # Texel receivers are baked lattice by lattice, coarse to fine; the first job is the one the checks size.
         self.levels = texel_bake.refining_job(solved, settings, transfer_job)
         self.job = self.levels.first
-        self.probes, self.probe_job = self._probe_job(occluders, count)
+        self.probes, self.probe_job = self._probe_job(occluders, count, shard)
         self.sequence = JobSequence([self.levels, self.probe_job],
                                     [self.job.total_vertices, max(1, self.probe_job.total_vertices)], "PRT bake")
         self.summary = None
 
-    def _probe_job(self, occluders, workers):
+    def _probe_job(self, occluders, workers, shard):
         """Points inside the receivers' faces, baked after them to measure what storage per vertex loses between
         vertices (core.interpolation); an interreflected bake's probes measure its direct transfer. Not for texel
         receivers (their estimate holds what interpolating between texels may miss: core.texel_refine), nor for
-        the objects Auto's probes measured already."""
+        the objects Auto's probes measured already. A farm shard bakes its share of their chunks too, so the merge
+        casts no ray."""
         probes = {surface.receiver.name: interpolation.face_probes(
                       surface.triangles, surface.receiver.positions, surface.receiver.normals,
                       interpolation.probe_count(_vertex_count(surface)), self.settings.seed)
@@ -174,7 +171,7 @@ class SceneBake(WrappingJob):
         receivers = [bake.Receiver(name, found.positions, found.normals, bake.Receiver.key_for(name + " probes"))
                      for name, found in probes.items()]
         settings = replace(self.settings, mode="shadowed") if self.settings.mode == "interreflected" else self.settings
-        return probes, job.TransferJob(receivers, occluders, settings, workers, worker_launch())
+        return probes, job.TransferJob(receivers, occluders, settings, workers, worker_launch(), shard=shard)
 
     def _bouncing_surfaces(self, context, depsgraph, receiver_names):
         found = []

@@ -68,6 +68,15 @@ class Planned:
     probe_s: float = 0.0
 
 
+def refuse_on_farm(objects, overrides: dict):
+    """Farm shards and their merge bake per vertex only: a texel bake refines lattice by lattice, each step deciding
+    from the whole previous lattice, and Auto decides from probes baked before the bake."""
+    chosen = [ob.name for ob in objects if options_for(ob, overrides).storage != "vertex"]
+    if chosen:
+        raise InputError(f"{', '.join(map(repr, chosen))}: Storage Texel or Auto bakes on one machine; farm shards "
+                         f"store per vertex: bake without --shard or --dask, or set Storage Vertex")
+
+
 def plan(objects, surfaces, occluders, settings: bake.BakeSettings, overrides: dict, depsgraph, problems,
          coloured: bool = False) -> Planned:
     """Each receiver's storage: its vertex surface kept, or a TexelSurface. An object whose texels cannot be

@@ -11,7 +11,7 @@ from ..blender.scene_bake import SceneBake
 from ..core import checks, presets, settings as spec
 from ..core.bake import BakeSettings
 from ..core.errors import InputError
-from ..core.shards import shard_of
+from ..core.shards import Stopwatch, shard_of
 from . import farm_dask, light_options
 from .common import check_writable, log, names, open_file, save_bake, warn
 
@@ -88,6 +88,7 @@ def storage_options(args) -> dict:
 
 
 def run(args, in_blender: bool) -> int:
+    stopwatch = Stopwatch()  # a shard's part counts its seconds from here: its file opened, gathered, baked, written
     settings = settings_from(args)
     shard = _farm_options(args)
     for path in (args.out, args.report):
@@ -97,7 +98,7 @@ def run(args, in_blender: bool) -> int:
     workers = getattr(args, "workers", spec.WORKERS.default)
     receivers = names(args.objects)
     if shard:
-        info = bake_shard(bpy.context, settings, receivers, shard, args.out, workers, log=log)
+        info = bake_shard(bpy.context, settings, receivers, shard, args.out, stopwatch, workers, log=log)
         log(f"PRT shard {args.shard}: {info.rays} rays in {info.time_s:.2f} s; wrote {args.out}")
         return 0
     found = [scene_checks.output_check(args.output or bpy.data.filepath, required=True)]

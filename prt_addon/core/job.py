@@ -178,7 +178,7 @@ class TransferJob(Job):
         for chunk_index in self.baked_chunks:
             yield from self._bake_chunk_here(caster, chunk_index)
 
-    def take_parts(self, chunk_results, shards_time_s: float):
+    def take_parts(self, chunk_results, shards_time_s: float = 0.0):
         """Merges farm shards: every chunk's result comes from their parts instead of being baked here (their bakes
         took `shards_time_s` in all); step() then bounces interreflections as after a bake."""
         self.phase_times["shards_s"] = shards_time_s
@@ -188,6 +188,7 @@ class TransferJob(Job):
         for chunk_index, result in chunk_results:
             self._store(chunk_index, result)
             self.done_vertices += len(self.chunks[chunk_index][1])
+            self.rays += int(result.rays.sum())
             yield
 
     def _bake_chunk_here(self, caster, chunk_index):

@@ -59,29 +59,35 @@ def load_job(path):
 def save_results(out_file, results, **extra):
     """Saves (chunk index, ChunkResult) pairs, and `extra` arrays, where load_results reads them: a path, or an
     open binary file (np.savez adds no '.npz' to it)."""
-    arrays = {}
+    np.savez(out_file, **result_arrays(results), **extra)
+
+
+def result_arrays(results, prefix: str = "") -> dict:
+    """The arrays save_results saves for (chunk index, ChunkResult) pairs, by name (each name after `prefix`)."""
+    arrays = {"chunks": np.array([chunk_index for chunk_index, _ in results], dtype=np.int64)}
     for slot, (_, result) in enumerate(results):
         for name in ("transfer", "std_error", "rays", "skipped"):
             arrays[f"{name}_{slot}"] = getattr(result, name)
         if result.records is not None:
             for name in interreflect.HitRecords.FIELDS:
                 arrays[f"records_{name}_{slot}"] = getattr(result.records, name)
-    chunks = np.array([chunk_index for chunk_index, _ in results], dtype=np.int64)
-    np.savez(out_file, chunks=chunks, **arrays, **extra)
+    return {prefix + name: array for name, array in arrays.items()}
 
 
-def load_results(path) -> list[tuple[int, bake.ChunkResult]]:
-    """(chunk index, result) for every chunk a worker baked."""
+def load_results(path, prefix: str = "") -> list[tuple[int, bake.ChunkResult]]:
+    """(chunk index, result) for every chunk a worker baked (saved under `prefix`, as result_arrays names them)."""
     with np.load(path) as data:
-        return [(int(chunk_index), bake.ChunkResult(data[f"transfer_{i}"], data[f"std_error_{i}"], data[f"rays_{i}"],
-                                                     data[f"skipped_{i}"], _load_records(data, i)))
-                for i, chunk_index in enumerate(data["chunks"])]
+        return [(int(chunk_index), bake.ChunkResult(
+                    *(data[f"{prefix}{name}_{i}"] for name in ("transfer", "std_error", "rays", "skipped")),
+                    _load_records(data, prefix, i)))
+                for i, chunk_index in enumerate(data[prefix + "chunks"])]
 
 
-def _load_records(data, slot):
-    if f"records_vertex_{slot}" not in data:
+def _load_records(data, prefix, slot):
+    if f"{prefix}records_vertex_{slot}" not in data:
         return None
-    return interreflect.HitRecords(*(data[f"records_{name}_{slot}"] for name in interreflect.HitRecords.FIELDS))
+    return interreflect.HitRecords(*(data[f"{prefix}records_{name}_{slot}"]
+                                     for name in interreflect.HitRecords.FIELDS))
 
 
 def bake_chunks(caster, receivers, settings, chunk_indices, out_file, stream):

@@ -10,10 +10,12 @@ receivers, the settings, each receiver's fingerprint, and the shard's seconds (w
 """
 
 from collections import Counter
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
 import json
 import os
 import tempfile
+import time
+import zipfile
 
 import numpy as np
 
@@ -21,7 +23,8 @@ from . import fingerprint, job_file
 from .errors import InputError
 from .workers import shard_chunks
 
-PART_FORMAT = "prt-part-1"
+PART_FORMAT = "prt-part-2"
+PROBES = "probe_"  # the prefix of the probes' arrays
 
 
 @dataclass
@@ -29,18 +32,20 @@ class PartInfo:
     shard: int
     shards: int
     chunks: int            # the whole bake's chunks
+    probe_chunks: int      # the whole bake's chunks of points between vertices (core.interpolation)
     scene: str             # the .blend file's name
     surfaces: list         # every solved surface's name, in the job's order
     receivers: list        # the surfaces stored on their objects
     settings: dict         # core.bake.BakeSettings' fields
     fingerprints: dict     # receiver → part → digest (blender.fingerprint)
-    time_s: float = 0.0
-    cpu_s: float = 0.0     # this process and its workers
+    time_s: float = 0.0    # the bake command's seconds, from its start to the part written (Stopwatch)
+    cpu_s: float = 0.0     # the same span's CPU seconds: this process and its workers
     rays: int = 0
 
     def same_bake(self) -> tuple:
         """What must match between parts of one bake, and the scene they are merged into, besides shard K."""
-        return (self.shards, self.chunks, self.surfaces, self.receivers, self.settings, self.fingerprints)
+        return (self.shards, self.chunks, self.probe_chunks, self.surfaces, self.receivers, self.settings,
+                self.fingerprints)
 
 
 def shard_of(text: str) -> tuple[int, int]:
@@ -54,20 +59,46 @@ def shard_of(text: str) -> tuple[int, int]:
     return shard, shards
 
 
-def write_part(path: str, info: PartInfo, chunk_results) -> None:
+def cpu_seconds() -> float:
+    """CPU time of this process and its finished children (forked bake workers)."""
+    times = os.times()
+    return times.user + times.system + times.children_user + times.children_system
+
+
+@dataclass
+class Stopwatch:
+    """Started with a shard's command (before its file is opened); a part's seconds are read from it."""
+    wall_s: float = field(default_factory=time.perf_counter)
+    cpu_s: float = field(default_factory=cpu_seconds)
+
+    def elapsed(self) -> tuple[float, float]:
+        return time.perf_counter() - self.wall_s, cpu_seconds() - self.cpu_s
+
+
+def write_part(path: str, info: PartInfo, chunk_results, probe_results, stopwatch: Stopwatch) -> None:
     """Writes the part atomically (a temporary file in the same folder, renamed over `path`), creating the folder:
-    a farm that kills a shard midway, or retries it, never leaves half a part."""
+    a farm that kills a shard midway, or retries it, never leaves half a part. The chunks' arrays go first and
+    the description last, so its seconds (info.time_s, cpu_s, read from `stopwatch`) include writing them."""
     folder = os.path.dirname(os.path.abspath(path))
     os.makedirs(folder, exist_ok=True)
     handle, temporary = tempfile.mkstemp(prefix=".prt_part_", suffix=".partial", dir=folder)
     try:
-        with os.fdopen(handle, "wb") as out:
-            job_file.save_results(out, sorted(chunk_results.items()),
-                                  part=np.array(json.dumps({"format": PART_FORMAT, **asdict(info)})))
+        with os.fdopen(handle, "wb") as out, zipfile.ZipFile(out, "w") as archive:  # np.savez's layout
+            arrays = {**job_file.result_arrays(sorted(chunk_results.items())),
+                      **job_file.result_arrays(sorted(probe_results.items()), PROBES)}
+            for name, array in arrays.items():
+                _write_array(archive, name, array)
+            info.time_s, info.cpu_s = stopwatch.elapsed()
+            _write_array(archive, "part", np.array(json.dumps({"format": PART_FORMAT, **asdict(info)})))
         os.replace(temporary, path)
     except BaseException:
         os.unlink(temporary)
         raise
+
+
+def _write_array(archive: zipfile.ZipFile, name: str, array: np.ndarray):
+    with archive.open(name + ".npy", "w", force_zip64=True) as entry:
+        np.lib.format.write_array(entry, np.asanyarray(array), allow_pickle=False)
 
 
 def part_paths(given) -> list[str]:
@@ -84,12 +115,12 @@ def part_paths(given) -> list[str]:
     return paths
 
 
-def read_part(path: str) -> tuple[PartInfo, list[int]]:
-    """A part's description and the chunks it holds."""
+def read_part(path: str) -> tuple[PartInfo, tuple[list[int], list[int]]]:
+    """A part's description and the chunks it holds: the vertices', and the probes'."""
     try:
         with np.load(path) as data:
             meta = json.loads(str(data["part"]))
-            chunks = [int(index) for index in data["chunks"]]
+            chunks = tuple([int(index) for index in data[prefix + "chunks"]] for prefix in ("", PROBES))
     except FileNotFoundError:
         raise InputError(f"no such part file: {path}") from None
     except (OSError, ValueError, KeyError):
@@ -99,9 +130,9 @@ def read_part(path: str) -> tuple[PartInfo, list[int]]:
     return PartInfo(**meta), chunks
 
 
-def load_chunks(path: str):
-    """(chunk index, ChunkResult) for every chunk the part holds."""
-    return job_file.load_results(path)
+def load_chunks(path: str, prefix: str = ""):
+    """(chunk index, ChunkResult) for every chunk the part holds (the probes' with prefix PROBES)."""
+    return job_file.load_results(path, prefix)
 
 
 def chosen_bake(infos: list[PartInfo]) -> PartInfo:
@@ -111,7 +142,7 @@ def chosen_bake(infos: list[PartInfo]) -> PartInfo:
     return next(info for info in infos if json.dumps(info.same_bake(), sort_keys=True) == wanted)
 
 
-def refusals(parts: list[tuple[str, PartInfo, list[int]]], current: PartInfo) -> list[str]:
+def refusals(parts: list[tuple[str, PartInfo, tuple[list[int], list[int]]]], current: PartInfo) -> list[str]:
     """Why these parts (path, description, chunks) do not make the bake of `current` (the scene as it is now, the chosen bake's
     settings): each foreign, stale, misnumbered or duplicate part and each missing shard, by name. [] when they
     cover every chunk exactly once."""
@@ -130,10 +161,11 @@ def refusals(parts: list[tuple[str, PartInfo, list[int]]], current: PartInfo) ->
     return found
 
 
-def _part_problem(info: PartInfo, chunks: list[int], current: PartInfo) -> str | None:
+def _part_problem(info: PartInfo, chunks: tuple[list[int], list[int]], current: PartInfo) -> str | None:
     if not 1 <= info.shard <= info.shards:
         return f"is shard {info.shard}/{info.shards}: K must be from 1 to N"
-    if info.receivers != current.receivers or info.surfaces != current.surfaces or info.chunks != current.chunks:
+    if (info.receivers, info.surfaces, info.chunks, info.probe_chunks) != (
+            current.receivers, current.surfaces, current.chunks, current.probe_chunks):
         return f"is from another scene or selection ({info.scene}: {', '.join(info.receivers)})"
     changed = sorted({word for name, stored in info.fingerprints.items()
                       for word in fingerprint.changes(stored, current.fingerprints[name])})
@@ -141,6 +173,6 @@ def _part_problem(info: PartInfo, chunks: list[int], current: PartInfo) -> str |
         return f"is stale ({', '.join(changed)} since it was baked)"
     if info.shards != current.shards:
         return f"is shard {info.shard}/{info.shards}, the others are of {current.shards}"
-    if chunks != shard_chunks(info.chunks, info.shard, info.shards):
+    if chunks != tuple(shard_chunks(total, info.shard, info.shards) for total in (info.chunks, info.probe_chunks)):
         return f"does not hold shard {info.shard}/{info.shards}'s chunks"
     return None

@@ -1,6 +1,9 @@
 """Farm shards without Blender: which chunks each shard bakes, part files written and read back, and the merge's
 refusals, each naming what is wrong."""
 
+from dataclasses import replace
+import time
+
 import numpy as np
 import pytest
 
@@ -9,19 +12,20 @@ from prt_addon.core.bake import ChunkResult
 from prt_addon.core.errors import InputError
 from prt_addon.core.workers import shard_chunks
 
-CHUNKS = 7
+CHUNKS, PROBE_CHUNKS = 7, 2
 FINGERPRINT = {"geometry": "g", "transform": "t", "occluders": "o", "materials": "m", "settings": "s"}
 
 
 def info(shard, count=3, **changed) -> shards.PartInfo:
-    fields = dict(shard=shard, shards=count, chunks=CHUNKS, scene="room.blend", surfaces=["Floor", "Cube"],
+    fields = dict(shard=shard, shards=count, chunks=CHUNKS, probe_chunks=PROBE_CHUNKS, scene="room.blend", surfaces=["Floor", "Cube"],
                   receivers=["Floor", "Cube"], settings={"order": 3}, fingerprints={"Floor": FINGERPRINT,
                                                                                     "Cube": FINGERPRINT})
     return shards.PartInfo(**{**fields, **changed})
 
 
 def part(path, shard, count=3, **changed):
-    return path, info(shard, count, **changed), shard_chunks(CHUNKS, shard, count)
+    return path, info(shard, count, **changed), (shard_chunks(CHUNKS, shard, count),
+                                                 shard_chunks(PROBE_CHUNKS, shard, count))
 
 
 def test_shards_split_the_chunks_into_interleaved_shares_that_cover_each_once():
@@ -42,11 +46,16 @@ def test_shard_of_reads_k_of_n_from_1_to_n():
 def test_a_part_is_written_atomically_into_a_new_folder_and_reads_back(tmp_path):
     result = ChunkResult(np.arange(6.0).reshape(2, 3), np.ones(2), np.array([4, 5]), np.array([False, True]))
     path = tmp_path / "new" / "folder" / "part.npz"
-    shards.write_part(str(path), info(2), {5: result, 1: result})
+    started = shards.Stopwatch(time.perf_counter() - 10.0, shards.cpu_seconds() - 2.0)  # a command 10 s ago
+    probe = ChunkResult(np.full((1, 3), 7.0), np.zeros(1), np.array([9]), np.array([False]))
+    shards.write_part(str(path), info(2), {5: result, 1: result}, {1: probe}, started)
     read, chunks = shards.read_part(str(path))
-    assert read == info(2) and chunks == [1, 5]
+    assert chunks == ([1, 5], [1]) and 10.0 <= read.time_s < 60.0 and 2.0 <= read.cpu_s < 60.0
+    assert replace(read, time_s=0.0, cpu_s=0.0) == info(2)
     (index, loaded), _ = shards.load_chunks(str(path))
     assert index == 1 and np.array_equal(loaded.transfer, result.transfer) and loaded.records is None
+    [(index, loaded)] = shards.load_chunks(str(path), shards.PROBES)
+    assert index == 1 and np.array_equal(loaded.transfer, probe.transfer) and loaded.rays.tolist() == [9]
     assert [p.name for p in path.parent.iterdir()] == ["part.npz"]
 
 
@@ -75,7 +84,10 @@ def test_each_refusal_names_the_part_or_the_shard():
     assert found[0].startswith("p2 is from another scene or selection (room.blend: Suzanne)")
     found = shards.refusals([part("p1", 1), part("p2", 2, count=4), part("p3", 3)], current)
     assert found[0] == "p2 is shard 2/4, the others are of 3"
-    too_far = ("p5", info(5), [])
+    without_probes = ("p2", info(2), (shard_chunks(CHUNKS, 2, 3), []))
+    assert shards.refusals([part("p1", 1), without_probes, part("p3", 3)], current)[0] == (
+        "p2 does not hold shard 2/3's chunks")
+    too_far = ("p5", info(5), ([], []))
     assert shards.refusals([part("p1", 1), part("p2", 2), part("p3", 3), too_far], current) == [
         "p5 is shard 5/3: K must be from 1 to N"]
 
