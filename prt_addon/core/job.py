@@ -134,9 +134,6 @@ class TransferJob(Job):
         if self.finished:
             return True
         if self._runner is None:
-            # Timed from here: a job built ahead of its turn (a bake's probes, built with its transfer job) counts
-            # only its own work.
-            self.progress.start = self.progress.clock()
             self._runner = self._run_workers() if self.uses_workers() else self._run_here()
         deadline = time.perf_counter() + budget_s
         while time.perf_counter() < deadline:
