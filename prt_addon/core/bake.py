@@ -303,9 +303,11 @@ def shadowed_chunk(caster: RayCaster, positions, normals, inward, keys, settings
     for round_index in range(MAX_ROUNDS):
         for per_replicate, members in plan:
             group_rays = replicates * per_replicate
-            # A round casts at most RAYS_PER_BATCH rays at a time: bounded memory, and progress (and Esc) between
+            # A round weighs at most RAYS_PER_BATCH rays × rows at a time (a row of a shared group weighs all of its
+            # group's rays): bounded memory, each round's arrays small enough to stay in cache (the flat-shaded cow's
+            # rounds of 128 shared groups took 1.3-1.5× the CPU of rounds of 42), and progress (and Esc) between
             # batches. Every group keeps its own random streams, so batching never changes a result.
-            batch = max(1, RAYS_PER_BATCH // group_rays)
+            batch = max(1, RAYS_PER_BATCH // (group_rays * members.shape[1]))
             for part in np.array_split(members, np.arange(batch, len(members), batch)):
                 flat = None if cones is None else cones[part], flat_blocked[part]
                 mean, variance, round_hits = _blocked_round(caster, origins[part[:, 0]], frames[part],
@@ -516,14 +518,18 @@ def vertex_keys(receiver: Receiver, rows: np.ndarray) -> np.ndarray:
 def chunk_rows(receivers) -> list[tuple[int, np.ndarray]]:
     """(receiver index, rows) for chunks of CHUNK_VERTICES ray groups (rows, without groups) over every receiver,
     fixed by the receivers alone: a group's rows share a chunk, and a chunk's rounds cast about as many rays
-    whether its groups are single rows or the corner points of split vertices."""
+    whether its groups are single rows or the corner points of split vertices. Groups are taken in order of their
+    size, so a chunk holds groups of one or two sizes and runs a round for each (ray_sets) rather than one for each
+    of the many sizes a vertex's corners come in: the flat-shaded cow's 194 rounds of 18 groups on average became
+    138 of 25, and its chunks' CPU besides the rays 0.84-0.88× (results bit for bit the same)."""
     chunks = []
     for index, receiver in enumerate(receivers):
         count = len(receiver.positions)
         if receiver.ray_groups is None:
             order, starts = np.arange(count), np.arange(count)
         else:
-            order = np.argsort(receiver.ray_groups, kind="stable")
+            _, group, sizes = np.unique(receiver.ray_groups, return_inverse=True, return_counts=True)
+            order = np.lexsort((receiver.ray_groups, sizes[group.ravel()]))
             labels = receiver.ray_groups[order]
             starts = np.flatnonzero(np.r_[True, labels[1:] != labels[:-1]])
         chunks.extend((index, rows) for rows in np.split(order, starts[CHUNK_VERTICES::CHUNK_VERTICES]))
