@@ -152,7 +152,7 @@ def test_merged_shards_are_bit_identical_to_one_bake_and_a_retried_shard_writes_
     for key in ("objects", "rays", "vertices", "skipped_vertices", "est_rms_rel_error", "est_max_rel_error",
                 "per_object", "bounces", "bounce_relative_changes", "subsurface_objects"):
         assert merged_report[key] == one_report[key], key
-    assert merged_report["phases_s"]["shards_s"] > 0
+    assert 0 < merged_report["phases_s"]["shards_s"] < merged_report["time_s"]  # the shards' seconds and the merge's
     first = part_arrays(parts[1])
     ok(run_cli("bake", scenes["room"], "--shard", "2/4", "--out", parts[1], *options))
     assert part_arrays(parts[1]) == first

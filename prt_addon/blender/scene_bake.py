@@ -246,7 +246,9 @@ class SceneBake(WrappingJob):
         self.summary.interp_points = self.probe_job.total_vertices + sum(map(len, self.plan.measured.values()))
         self.summary.interp_rays = self.probe_job.rays + self.plan.probe_rays
         self.summary.phases_s["probes_s"] = self.probe_job.progress.elapsed + self.plan.probe_s
-        self.summary.time_s = self.sequence.progress.elapsed + self.plan.probe_s
+        # A merge's time is the shards' seconds summed plus its own, as its job's summary counts it.
+        self.summary.time_s = (self.sequence.progress.elapsed + self.plan.probe_s
+                               + self.job.phase_times.get("shards_s", 0.0))
 
     def _count_vertices(self):
         """The summary in mesh vertices, with the shading points they were split into (core.corners)."""
