@@ -173,6 +173,12 @@ class SceneBake(WrappingJob):
         settings = replace(self.settings, mode="shadowed") if self.settings.mode == "interreflected" else self.settings
         return probes, job.TransferJob(receivers, occluders, settings, workers, worker_launch(), shard=shard)
 
+    def bake_only(self, shard):
+        """Bakes only farm shard (K, N)'s chunks of the vertices and of the probes: a farm bake's (`farm`) whole
+        scene, gathered once, is shared so between forked shards (commands.farm_dask)."""
+        self.job.bake_only(shard)
+        self.probe_job.bake_only(shard)
+
     def _bouncing_surfaces(self, context, depsgraph, receiver_names):
         found = []
         for ob in geometry.visible_mesh_objects(context):
