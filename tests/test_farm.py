@@ -367,7 +367,7 @@ def threads_as_workers(folder: Path):
 def test_local_dask_shards_are_forks_of_the_baking_process_and_a_failed_one_is_named(tmp_path):
     def bake_here(shard, part):
         Path(part).write_text(f"{shard} {os.getpid()} {os.getppid()}")
-    cluster = farm_dask.DaskBake(functools.partial(threads_as_workers, tmp_path))
+    cluster = farm_dask.DaskBake(functools.partial(threads_as_workers, tmp_path), local=True)
     try:
         said = [Path(part).read_text().split() for part in cluster.parts(bake_here)]
     finally:
@@ -379,7 +379,7 @@ def test_local_dask_shards_are_forks_of_the_baking_process_and_a_failed_one_is_n
         if shard == (2, 2):
             raise InputError("no rays today")
         bake_here(shard, part)
-    cluster = farm_dask.DaskBake(functools.partial(threads_as_workers, tmp_path))
+    cluster = farm_dask.DaskBake(functools.partial(threads_as_workers, tmp_path), local=True)
     try:
         with pytest.raises(InputError, match=r"shard 2/2 failed: prt: error: no rays today"):
             cluster.parts(failing)

@@ -179,6 +179,11 @@ class SceneBake(WrappingJob):
         self.job.bake_only(shard)
         self.probe_job.bake_only(shard)
 
+    def build_ray_tree(self):
+        """Builds the occluders' ray tree now (the jobs keep it), so that shards forked afterwards share it."""
+        if self.job.occluders is not None:
+            self.job.occluders.ray_caster()
+
     def _bouncing_surfaces(self, context, depsgraph, receiver_names):
         found = []
         for ob in geometry.visible_mesh_objects(context):

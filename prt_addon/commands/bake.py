@@ -112,9 +112,11 @@ def run(args, in_blender: bool) -> int:
             return 0
     if args.dask:
         with farm_dask.dask_bake(args.dask, bpy.data.filepath, settings, receivers, log) as cluster:
-            # Gathered once, while the cluster starts: local shards are forks that bake their share of it, and the
-            # merge stores the parts into it.
+            # Gathered once, while the cluster starts: local shards are forks that bake their share of it (with its
+            # ray tree, built before they fork), and the merge stores the parts into it.
             scene_bake = SceneBake(bpy.context, settings, receivers, farm=True)
+            if cluster.forks_shards:
+                scene_bake.build_ray_tree()
             parts = cluster.parts(lambda shard, part: bake_share(scene_bake, shard, part, Stopwatch()))
             merge_parts(bpy.context, parts, log=log, scene_bake=scene_bake)
         warn(scene_bake.problems + scene_bake.notes)

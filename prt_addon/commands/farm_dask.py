@@ -49,7 +49,8 @@ def dask_bake(scheduler: str, blend_file: str, settings, receivers, log):
         raise InputError("--dask needs Dask's distributed package (pip install distributed)")
     with tempfile.TemporaryDirectory(prefix="prt_dask_") as folder:
         cluster = DaskBake(functools.partial(_parts_from_cluster, scheduler, local_workers, blend_file,
-                                             bake_arguments(settings, receivers), folder, log))
+                                             bake_arguments(settings, receivers), folder, log),
+                           local=local_workers is not None)
         try:
             yield cluster
         finally:
@@ -83,11 +84,13 @@ class DaskBake:
     cannot fork, the client runs in this process when parts() is called, and every shard in a new process). This
     process must start no thread of its own meanwhile: it forks the local shards."""
 
-    def __init__(self, parts_from_cluster):
+    def __init__(self, parts_from_cluster, local: bool):
         self._parts_from_cluster = parts_from_cluster  # a context manager: the client, yielding the part files
         self.pid = None
+        self.forks_shards = False  # whether parts() bakes the shards in forks of this process (local:N)
         if not hasattr(os, "fork"):
             return
+        self.forks_shards = local
         requests_in, requests = os.pipe()
         replies_in, replies = os.pipe()
         sys.stdout.flush()

@@ -179,7 +179,7 @@ class TransferJob(Job):
                                                          result.records.weight, result.records.replicate))
 
     def _run_here(self):
-        caster = bake.RayCaster(self.occluders) if self.settings.mode != "unshadowed" else None
+        caster = self.occluders.ray_caster() if self.settings.mode != "unshadowed" else None
         yield
         for chunk_index in self.baked_chunks:
             yield from self._bake_chunk_here(caster, chunk_index)
@@ -216,7 +216,7 @@ class TransferJob(Job):
         bakes the chunks it owns."""
         with tempfile.TemporaryDirectory(prefix="prt_bake_") as folder:
             forking = self.worker_command == FORK
-            caster = bake.RayCaster(self.occluders) if forking else None  # built once, before forking: shared
+            caster = self.occluders.ray_caster() if forking else None  # built before forking: shared
             if not forking:
                 saved_job = os.path.join(folder, "job.npz")
                 job_file.save_job(saved_job, self.receivers, self.occluders, self.settings)
@@ -244,7 +244,7 @@ class TransferJob(Job):
                     threading.Thread(target=read_lines, args=(started.stdout, lines), daemon=True).start()
                 if shared_queue is not None:
                     shared_queue.fill()
-                caster = caster or bake.RayCaster(self.occluders)  # spawned workers start meanwhile
+                caster = self.occluders.ray_caster()  # spawned workers start meanwhile
                 running = len(workers)
                 for chunk_index in mine:
                     yield from self._bake_chunk_here(caster, chunk_index)
