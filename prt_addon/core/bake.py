@@ -47,6 +47,7 @@ CONVENTION_VERSION = 3
 # of both. Faces count as facing when their normals are at least this far from perpendicular.
 FACING_COSINE = -0.05
 ON_SURFACE = 0.01  # of the ray offset: how far from a surface a point still lies on it
+TOUCH_REACH = 2.0  # of the ray offset: surfaces this near a point's vertex are touched (its origins lie within it)
 
 
 @dataclass
@@ -206,36 +207,57 @@ class RayCaster:
         return map(self.tree.ray_cast, per_ray_origins, zip(xs, ys, zs), repeat(self.max_distance))
 
     def touched_surfaces(self, surface, normals: np.ndarray, steps: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(normals (c, 3), heights (c,)): of the occluder face within the ray offset of each point that faces it
-        most, with the point on its front side, its normal and the point's height above it; zero normal where
-        there is none. The points are tested a little inside their own faces, at `surface` (c, 3) + offset ·
-        `steps` (along the faces: a step tangent to a leaning normal would dip under a floor the vertex rests on):
-        their own and adjacent faces face the same way or lie behind them (a crease, a knife edge) and never count. Only points with a facing face within two offsets of their surface position are tested
-        one by one: the corner points of one vertex share that first search."""
-        touched, heights = np.zeros_like(normals), np.zeros(len(surface))
-        for row in self._may_touch(surface, normals):
-            point, normal = surface[row] + self.offset * steps[row], normals[row]
-            found = [(face_normal.dot(normal), face_normal, np.dot(point - np.asarray(nearest), face_normal))
-                     for nearest, face_normal, _, _ in self.tree.find_nearest_range(tuple(point), self.offset)]
-            facing = [face for face in found if face[0] < FACING_COSINE and face[2] > -ON_SURFACE * self.offset]
-            if facing:
-                _, touched[row], heights[row] = min(facing, key=itemgetter(0))
-        return touched, heights
+        """(normals (c, 3), lying (c,) bool): the normal of the occluder face that each point faces most among those
+        it touches (zero where there is none), and whether it lies on a face it faces. A point is judged a step into
+        its own faces, at `surface` (c, 3) + offset · `steps` (along the faces: a step tangent to a leaning normal
+        would dip under a floor the vertex rests on). It touches a face it faces, with that step on the face's
+        front side, that lies within one offset of the step (a fold of its own surface over it, a floor under it)
+        or, unless the face meets the point's vertex (has a corner at its position), within TOUCH_REACH offsets of
+        the vertex: a cone's apex (a sphere's pole on a floor) steps straight up, out of the floor's reach, and the
+        faces meeting at a vertex are its own surface, not one it touches. It lies on a face within ON_SURFACE
+        offsets of its step. The corner points of one vertex share the search at the vertex, which also picks the
+        points searched at their step (those facing some face near their vertex)."""
+        stepped = surface + self.offset * steps
+        row, location, face_normal, own = self._near_vertices(surface)
+        dots = np.einsum("ij,ij->i", face_normal, normals[row])
+        facing = dots < FACING_COSINE
+        in_front = np.einsum("ij,ij->i", stepped[row] - location, face_normal) > -ON_SURFACE * self.offset
+        keep = facing & in_front & ~own
+        found = [(row[keep], dots[keep], face_normal[keep])]
+        lying = np.zeros(len(surface), dtype=bool)
+        for r in np.unique(row[facing]):
+            point, normal = stepped[r], normals[r]
+            for nearest, normal_there, _, distance in self.tree.find_nearest_range(tuple(point), self.offset):
+                dot = normal_there.dot(normal)
+                if dot < FACING_COSINE and np.dot(point - np.asarray(nearest), normal_there) > -ON_SURFACE * self.offset:
+                    found.append(([r], [dot], [normal_there]))
+                    lying[r] |= distance <= ON_SURFACE * self.offset
+        row, dots, face_normal = (np.concatenate(part) for part in zip(*found))
+        touched = np.zeros_like(normals)
+        most = np.lexsort((dots, row))  # each row's most facing face first
+        first = most[np.r_[True, row[most][1:] != row[most][:-1]]] if len(row) else most
+        touched[row[first]] = np.asarray(face_normal, dtype=np.float64).reshape(-1, 3)[first]
+        return touched, lying
 
-    def _may_touch(self, surface, normals) -> np.ndarray:
-        """Rows with some occluder face within two offsets of their surface position that faces their normal."""
+    def _near_vertices(self, surface):
+        """Every occluder face within TOUCH_REACH offsets of each row's position (c, 3), one search per distinct
+        position: (row (F,), nearest point (F, 3), face normal (F, 3), own (F,) bool: the face has a corner at the
+        row's position)."""
         places, place_of_row = np.unique(surface, axis=0, return_inverse=True)
-        near = [[tuple(face_normal) for _, face_normal, _, _ in found] for found in
-                map(self.tree.find_nearest_range, map(tuple, places.tolist()), repeat(2.0 * self.offset))]
-        counts = np.array([len(faces) for faces in near])
-        face_normals = np.array(list(chain.from_iterable(near)), dtype=np.float64).reshape(-1, 3)
-        first_face = np.r_[0, np.cumsum(counts)[:-1]]
-        per_row = counts[place_of_row.ravel()]
+        place_of_row = place_of_row.ravel()
+        found = [[(index, *location, *normal) for location, normal, index, _ in near] for near in
+                 map(self.tree.find_nearest_range, map(tuple, places.tolist()), repeat(TOUCH_REACH * self.offset))]
+        counts = np.array([len(near) for near in found])
+        faces = np.array(list(chain.from_iterable(found)), dtype=np.float64).reshape(-1, 7)
+        face_place = np.repeat(np.arange(len(places)), counts)
+        corners = self.vertices[self.triangles[faces[:, 0].astype(np.int64)]]  # (F, 3, 3)
+        own = (corners == places[face_place][:, None]).all(axis=2).any(axis=1)
+        # Each row meets its place's faces: faces are in place order, so a place's start and count locate them.
+        per_row = counts[place_of_row]
         row = np.repeat(np.arange(len(surface)), per_row)
-        face = np.repeat(first_face[place_of_row.ravel()] - np.r_[0, np.cumsum(per_row)[:-1]], per_row) \
-            + np.arange(per_row.sum())
-        facing = np.einsum("ij,ij->i", face_normals[face], normals[row]) < FACING_COSINE
-        return np.unique(row[facing])
+        first_face = np.r_[0, np.cumsum(counts)[:-1]]
+        face = np.repeat(first_face[place_of_row] - np.r_[0, np.cumsum(per_row)[:-1]], per_row) + np.arange(len(row))
+        return row, faces[face, 1:4], faces[face, 4:], own[face]
 
     def front_hits(self, origins, directions, triangle, distance):
         """(barycentric (H, 3), front (H,) bool) for hits: the light leaving a surface is known on its front."""
@@ -255,13 +277,16 @@ def shadowed_chunk(caster: RayCaster, positions, normals, inward, keys, settings
     count = len(positions)
     unshadowed = unshadowed_transfer(order, normals)
     has_surface = np.abs(normals).sum(-1) > 0
-    # Contact is tested a little inside the point's own faces, so that a surface merely touching the vertex does
-    # not count; it overrides the hull test, which a coplanar surface below the point cannot fail.
+    # Lying on a surface is judged a little inside the point's own faces, so that a surface merely touching the
+    # vertex does not make it black.
     steps = inward if surface_steps is None else surface_steps
-    touched, heights = caster.touched_surfaces(positions, normals, steps)
+    touched, lying = caster.touched_surfaces(positions, normals, steps)
     facing = np.einsum("ij,ij->i", touched, normals) < 0
-    contact = has_surface & facing & (heights <= ON_SURFACE * caster.offset)
-    skipped = has_surface & (provably_unoccluded(positions, normals, caster.hull, caster.offset) | contact)
+    contact = has_surface & lying
+    # The hull test assumes rays start an offset along the normal; a point touching a surface starts them elsewhere
+    # (below), and a surface it faces squarely at its own tangent plane (a sphere's pole on a floor) passes the test.
+    open_sky = provably_unoccluded(positions, normals, caster.hull, caster.offset) & ~facing
+    skipped = has_surface & (open_sky | contact)
     rays = np.zeros(count, dtype=np.int64)  # cast from each row
     used = np.zeros(count, dtype=np.int64)  # each row's estimate rests on: its group's
     tangents, bitangents = sampling.orthonormal_basis(np.where(has_surface[:, None], normals, [0.0, 0.0, 1.0]))

@@ -32,6 +32,7 @@ AGREEMENT = 0.5         # of the target error: what interpolating a cell may err
 NOISE_ALLOWANCE = 2.0   # beyond this many standard errors of the corners' own noise
 POSITION_TOLERANCE = 0.1  # of the cell's size: farther, the cell spans a seam or a gap
 NORMAL_COSINE = np.cos(np.radians(10.0))
+ROWS_AT_ONCE = 1 << 17  # texels interpolated at once: their corners' transfer is (rows, 4, n²) float64
 
 
 @dataclass
@@ -83,17 +84,22 @@ class GridState:
 
     def interpolate(self, rows: np.ndarray, stride: int, scale: float, target: float) -> np.ndarray:
         """Interpolates the rows (on the lattice of `stride`) that can be, from the lattice of 2·stride; returns the
-        rows that must be baked."""
-        if not len(rows):
-            return rows
+        rows that must be baked. In batches, so memory stays bounded at any resolution: each row's choice reads the
+        coarser lattice only, which no batch changes."""
+        baked = [self._interpolate_batch(rows[start: start + ROWS_AT_ONCE], stride, scale, target)
+                 for start in range(0, len(rows), ROWS_AT_ONCE)]
+        return np.concatenate(baked) if baked else rows
+
+    def _interpolate_batch(self, rows, stride, scale, target):
         corners, weights = self._cell_corners(rows, 2 * stride)
         usable = (corners >= 0).all(axis=1)
         usable[usable] = self.known[corners[usable]].all(axis=1)
         candidates = rows[usable]
         corners, weights = corners[usable], weights[usable]
-        value = np.einsum("mc,mck->mk", weights, self.transfer[corners])
+        corner_values = self.transfer[corners]
+        value = np.einsum("mc,mck->mk", weights, corner_values)
         bend = self._bend(corners, 2 * stride)
-        spread = np.linalg.norm(self.transfer[corners] - value[:, None], axis=2).max(axis=1)
+        spread = np.linalg.norm(corner_values - value[:, None], axis=2).max(axis=1)
         interpolation = np.where(np.isnan(bend), spread, bend) / scale
         noise = np.sqrt(np.einsum("mc,mc->m", weights ** 2, self.noise[corners] ** 2))
         inherited = np.einsum("mc,mc->m", weights, self.bias[corners])
