@@ -19,7 +19,8 @@ Every process runs with one BLAS thread (OPENBLAS_NUM_THREADS=1, as the README's
 with OpenBLAS's default of one thread per core its idle helper thread busy-waits beside the bake, which doubles a
 one-process bake's CPU seconds here without making it faster, and would count as work in (a)-(c).
 
-Run from the repository root:  .venv/bin/python benchmarks/farm.py [--json PATH]
+Run from the repository root:  .venv/bin/python benchmarks/farm.py [--part shards|dask] [--json PATH]
+(--part runs and prints only 1 or only 2).
 """
 
 import argparse
@@ -136,15 +137,29 @@ def machine_check() -> float:
 
 def main():
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--part", choices=["shards", "dask"], help="run only 1 (shards) or only 2 (dask)")
     parser.add_argument("--json", help="also write the numbers here")
     args = parser.parse_args()
+    results = {}
     with tempfile.TemporaryDirectory(prefix="prt_farm_bench_") as folder:
         scene = demo_file(folder)
-        results = {"start_up_cpu_s": start_up_cpu_s(), "shards": shards_cpu(folder, scene, 256),
-                   "shards_farm_scale": shards_cpu(folder, scene, FARM_SCALE_SAMPLES),
-                   "dask": dask_wall(folder, scene)}
-    shards, farm_scale, dask = results["shards"], results["shards_farm_scale"], results["dask"]
+        if args.part != "dask":
+            results.update(start_up_cpu_s=start_up_cpu_s(), shards=shards_cpu(folder, scene, 256),
+                           shards_farm_scale=shards_cpu(folder, scene, FARM_SCALE_SAMPLES))
+        if args.part != "shards":
+            results["dask"] = dask_wall(folder, scene)
     print(f"demo scene, order 4 shadowed; {os.cpu_count()} cores; one BLAS thread per process")
+    if "shards" in results:
+        print_shards(results)
+    if "dask" in results:
+        print_dask(results["dask"])
+    if args.json:
+        with open(args.json, "w", encoding="utf-8") as out:
+            json.dump(results, out, indent=2)
+
+
+def print_shards(results: dict):
+    shards, farm_scale = results["shards"], results["shards_farm_scale"]
     print(f"1. shards' CPU, {SHARDS} shards ÷ one process ({GOALS['shards_cpu_sum_to_one']:.2f} goal, judged on (b)), "
           f"medians of {SHARD_ROUNDS} alternated rounds:")
     print(f"   (a) whole processes, 256 rays    {whole(shards)}")
@@ -154,6 +169,9 @@ def main():
     print(f"   (c) whole processes, {FARM_SCALE_SAMPLES} rays  {whole(farm_scale)}")
     print(f"   Python + bpy start-up alone      {results['start_up_cpu_s']:6.2f} s CPU per process, in (a) and (c), "
           f"not in (b); merge process {shards['merge_process_cpu_s']:.2f} s CPU (256 rays)")
+
+
+def print_dask(dask: dict):
     print(f"2. Dask LocalCluster, 2 workers ÷ one process, wall ({GOALS['dask_2_workers_to_one_wall']:.2f} goal), "
           f"median of {DASK_REPEATS} pairs: {dask['dask_2_workers_to_one_wall']:.3f}  "
           f"{verdict(dask['dask_2_workers_to_one_wall'], 'dask_2_workers_to_one_wall')}")
@@ -161,9 +179,6 @@ def main():
           f"ratios {', '.join(f'{d / o:.3f}' for d, o in zip(dask['dask_2_workers_wall_s'], dask['one_process_wall_s']))}")
     print(f"   machine check after each pair (two processes ÷ one, 0.5 on free cores): "
           f"{', '.join(f'{check:.2f}' for check in dask['machine_check'])}; bit-identical: {dask['bit_identical']}")
-    if args.json:
-        with open(args.json, "w", encoding="utf-8") as out:
-            json.dump(results, out, indent=2)
 
 
 def whole(shards: dict) -> str:

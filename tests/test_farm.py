@@ -3,6 +3,8 @@ bit for bit; the refusals; and the three engines that run them for real: Flamenc
 against a stand-in for its `author` API, its commands then run in dependency order), Open Job Description
 (`openjd run`) and Dask (a LocalCluster, and a scheduler with two workers started and stopped here)."""
 
+from concurrent.futures import ThreadPoolExecutor
+from contextlib import contextmanager
 import functools
 import hashlib
 import json
@@ -23,8 +25,10 @@ from test_interreflect_blender import coloured, wall
 from test_stale import stored
 from prt_addon.blender import storage
 from prt_addon.blender.scene_bake import SceneBake
+from prt_addon.commands import farm_dask
 from prt_addon.core import settings as spec
 from prt_addon.core.bake import BakeSettings
+from prt_addon.core.errors import InputError
 from prt_addon.core.workers import shard_chunks
 
 SETTINGS = ("--order", "3", "--samples", "16")
@@ -152,7 +156,7 @@ def test_merged_shards_are_bit_identical_to_one_bake_and_a_retried_shard_writes_
     for key in ("objects", "rays", "vertices", "skipped_vertices", "est_rms_rel_error", "est_max_rel_error",
                 "per_object", "bounces", "bounce_relative_changes", "subsurface_objects"):
         assert merged_report[key] == one_report[key], key
-    assert merged_report["phases_s"]["shards_s"] > 0
+    assert 0 < merged_report["phases_s"]["shards_s"] < merged_report["time_s"]  # the shards' seconds and the merge's
     first = part_arrays(parts[1])
     ok(run_cli("bake", scenes["room"], "--shard", "2/4", "--out", parts[1], *options))
     assert part_arrays(parts[1]) == first
@@ -332,12 +336,55 @@ def test_openjd_template_runs_bake_over_1_to_n_then_merge_bit_identical_to_one_b
 
 # -- Dask ----------------------------------------------------------------------------------------------------------
 
-def test_dask_local_cluster_bake_is_bit_identical_to_one_bake(scenes, reference, tmp_path):
+@pytest.mark.parametrize("mode, objects", BAKES[1:], ids=[mode for mode, _ in BAKES[1:]])
+def test_dask_local_cluster_bake_is_bit_identical_to_one_bake(scenes, reference, tmp_path, mode, objects):
     out = tmp_path / "baked.blend"
-    result = ok(run_cli("bake", scenes["room"], "--dask", "local:2", *bake_options("shadowed", None),
+    result = ok(run_cli("bake", scenes["room"], "--dask", "local:2", *bake_options(mode, objects),
                         "--output", out))
     assert "PRT dask: 2 shards on local:2" in result.stdout
-    assert_same_bake(out, reference("shadowed")[0])
+    assert_same_bake(out, reference(mode, objects)[0])
+
+
+def test_dask_refuses_a_bad_cluster_or_scene_with_one_line_and_writes_nothing(scenes, tmp_path):
+    out = tmp_path / "baked.blend"
+    refused(run_cli("bake", scenes["room"], "--dask", "local:0", "--output", out), "local:N", nothing_at=[out])
+    # The scene is gathered while the client starts the cluster: its refusal ends the client too.
+    refused(run_cli("bake", scenes["room"], "--dask", "local:2", "--objects", "Nothing", "--output", out),
+            "'Nothing'", nothing_at=[out])
+
+
+@contextmanager
+def threads_as_workers(folder: Path):
+    """Stands in for the Dask client of local:2: two threads each run a shard's task; their parts' bytes written."""
+    with ThreadPoolExecutor(2) as pool:
+        baked = list(pool.map(lambda shard: farm_dask.run_shard("room.blend", (shard, 2), []), (1, 2)))
+    parts = [folder / f"part-{shard}.npz" for shard in (1, 2)]
+    for part, content in zip(parts, baked):
+        part.write_bytes(content)
+    yield [str(part) for part in parts]
+
+
+def test_local_dask_shards_are_forks_of_the_baking_process_and_a_failed_one_is_named(tmp_path):
+    def bake_here(shard, part):
+        Path(part).write_text(f"{shard} {os.getpid()} {os.getppid()}")
+    cluster = farm_dask.DaskBake(functools.partial(threads_as_workers, tmp_path), local=True)
+    try:
+        said = [Path(part).read_text().split() for part in cluster.parts(bake_here)]
+    finally:
+        cluster.close()
+    assert [words[:2] for words in said] == [["(1,", "2)"], ["(2,", "2)"]]
+    assert {words[3] for words in said} == {str(os.getpid())} and len({words[2] for words in said}) == 2
+
+    def failing(shard, part):
+        if shard == (2, 2):
+            raise InputError("no rays today")
+        bake_here(shard, part)
+    cluster = farm_dask.DaskBake(functools.partial(threads_as_workers, tmp_path), local=True)
+    try:
+        with pytest.raises(InputError, match=r"shard 2/2 failed: prt: error: no rays today"):
+            cluster.parts(failing)
+    finally:
+        cluster.close()
 
 
 def started(command, log: Path):

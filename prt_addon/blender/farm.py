@@ -17,6 +17,12 @@ def bake_shard(context, settings: BakeSettings, names, shard, out: str, stopwatc
     """Bakes shard (K, N) of the scene's bake and writes its part file, its seconds read from `stopwatch` (started
     with the command); nothing in the scene changes."""
     scene_bake = SceneBake(context, settings, names, workers=workers, shard=shard)
+    return bake_share(scene_bake, shard, out, stopwatch, log)
+
+
+def bake_share(scene_bake: SceneBake, shard, out: str, stopwatch: shards.Stopwatch, log=None) -> shards.PartInfo:
+    """Bakes shard (K, N) of a gathered farm bake and writes its part file, its seconds read from `stopwatch`."""
+    scene_bake.bake_only(shard)
     scene_bake.sequence.run(log=log)  # its vertices' chunks and its probes'
     results, probe_results = scene_bake.job.shard_results, scene_bake.probe_job.shard_results
     info = part_info(scene_bake, shard)
@@ -25,14 +31,16 @@ def bake_shard(context, settings: BakeSettings, names, shard, out: str, stopwatc
     return info
 
 
-def merge_parts(context, paths, log=None) -> SceneBake:
-    """Merges the part files (or every part in a folder given) into the scene as one bake (stored, not saved). Refuses, before changing anything,
-    parts from another scene or selection, stale ones, duplicates and missing shards, naming them all."""
+def merge_parts(context, paths, log=None, scene_bake: SceneBake | None = None) -> SceneBake:
+    """Merges the part files (or every part in a folder given) into the scene as one bake (stored, not saved), into
+    `scene_bake` where the scene was gathered for them already (a farm bake, `farm`). Refuses, before changing
+    anything, parts from another scene or selection, stale ones, duplicates and missing shards, naming them all."""
     if not paths:
         raise InputError("no part files to merge")
     parts = [(path, *shards.read_part(path)) for path in shards.part_paths(paths)]
     chosen = shards.chosen_bake([info for _, info, _ in parts])
-    scene_bake = SceneBake(context, BakeSettings(**chosen.settings), chosen.receivers, farm=True)
+    if scene_bake is None:
+        scene_bake = SceneBake(context, BakeSettings(**chosen.settings), chosen.receivers, farm=True)
     problems = shards.refusals(parts, part_info(scene_bake, (0, chosen.shards)))
     if problems:
         raise InputError("cannot merge: " + "; ".join(problems) + "; nothing was written")

@@ -173,6 +173,17 @@ class SceneBake(WrappingJob):
         settings = replace(self.settings, mode="shadowed") if self.settings.mode == "interreflected" else self.settings
         return probes, job.TransferJob(receivers, occluders, settings, workers, worker_launch(), shard=shard)
 
+    def bake_only(self, shard):
+        """Bakes only farm shard (K, N)'s chunks of the vertices and of the probes: a farm bake's (`farm`) whole
+        scene, gathered once, is shared so between forked shards (commands.farm_dask)."""
+        self.job.bake_only(shard)
+        self.probe_job.bake_only(shard)
+
+    def build_ray_tree(self):
+        """Builds the occluders' ray tree now (the jobs keep it), so that shards forked afterwards share it."""
+        if self.job.occluders is not None:
+            self.job.occluders.ray_caster()
+
     def _bouncing_surfaces(self, context, depsgraph, receiver_names):
         found = []
         for ob in geometry.visible_mesh_objects(context):
@@ -246,7 +257,9 @@ class SceneBake(WrappingJob):
         self.summary.interp_points = self.probe_job.total_vertices + sum(map(len, self.plan.measured.values()))
         self.summary.interp_rays = self.probe_job.rays + self.plan.probe_rays
         self.summary.phases_s["probes_s"] = self.probe_job.progress.elapsed + self.plan.probe_s
-        self.summary.time_s = self.sequence.progress.elapsed + self.plan.probe_s
+        # A merge's time is the shards' seconds summed plus its own, as its job's summary counts it.
+        self.summary.time_s = (self.sequence.progress.elapsed + self.plan.probe_s
+                               + self.job.phase_times.get("shards_s", 0.0))
 
     def _count_vertices(self):
         """The summary in mesh vertices, with the shading points they were split into (core.corners)."""

@@ -5,7 +5,7 @@ import argparse
 import bpy
 
 from ..blender import checks as scene_checks
-from ..blender.farm import bake_shard, merge_parts
+from ..blender.farm import bake_share, bake_shard, merge_parts
 from ..blender.fingerprint import stale_line, stale_receivers
 from ..blender.scene_bake import SceneBake
 from ..core import checks, presets, settings as spec
@@ -111,8 +111,14 @@ def run(args, in_blender: bool) -> int:
         if not receivers:
             return 0
     if args.dask:
-        with farm_dask.parts_baked_on_dask(args.dask, bpy.data.filepath, settings, receivers, log) as parts:
-            scene_bake = merge_parts(bpy.context, parts, log=log)
+        with farm_dask.dask_bake(args.dask, bpy.data.filepath, settings, receivers, log) as cluster:
+            # Gathered once, while the cluster starts: local shards are forks that bake their share of it (with its
+            # ray tree, built before they fork), and the merge stores the parts into it.
+            scene_bake = SceneBake(bpy.context, settings, receivers, farm=True)
+            if cluster.forks_shards:
+                scene_bake.build_ray_tree()
+            parts = cluster.parts(lambda shard, part: bake_share(scene_bake, shard, part, Stopwatch()))
+            merge_parts(bpy.context, parts, log=log, scene_bake=scene_bake)
         warn(scene_bake.problems + scene_bake.notes)
     else:
         scene_bake = SceneBake(bpy.context, settings, receivers, workers=workers,

@@ -116,6 +116,14 @@ class Occluders:
     hull: np.ndarray       # (H, 3) float64: any superset of the convex hull's vertices
     polygons: list = field(default_factory=list)  # (m, 3) float64 corners each; see polygons.py
     solved_vertices: int = 0
+    _caster: "RayCaster | None" = field(default=None, init=False, repr=False, compare=False)
+
+    def ray_caster(self) -> "RayCaster":
+        """Their ray tree, built on the first call and kept: a bake's jobs share it, and so do processes forked
+        afterwards."""
+        if self._caster is None:
+            self._caster = RayCaster(self)
+        return self._caster
 
     @property
     def center(self) -> np.ndarray:

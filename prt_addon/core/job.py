@@ -101,16 +101,13 @@ class TransferJob(Job):
         self.worker_start_s = WORKER_START_S  # spawned workers: this process takes the share they start late
         self.owners = owners
         self.chunks = bake.chunk_rows(receivers)
-        self.shard = shard
-        self.baked_chunks = range(len(self.chunks)) if shard is None else shard_chunks(len(self.chunks), *shard)
-        self.shard_results = None if shard is None else {}
+        self.bake_only(shard)
         self.total_vertices = sum(len(r.positions) for r in receivers)
         self._vertex_offsets = np.cumsum([0] + [len(r.positions) for r in receivers])
         self.gather_only = gather_only
         if settings.mode == "interreflected" and not gather_only and occluders.solved_vertices != self.total_vertices:
             raise ValueError(f"interreflection needs occluders that begin with the {self.total_vertices} solved "
                              f"vertices, not {occluders.solved_vertices}")
-        self.baked_vertices = sum(len(self.chunks[index][1]) for index in self.baked_chunks)
         self.done_vertices = 0
         self.rays = 0
         self.progress = Progress("PRT bake")
@@ -127,6 +124,15 @@ class TransferJob(Job):
         self.phase_times = {}
         self._runner = None
         self.finished = False
+
+    def bake_only(self, shard):
+        """Bakes only farm shard (K, N)'s chunks (workers.shard_chunks), keeping their results for its part file
+        (shard_results), or every chunk for None. Called before the first step: a forked child of a process that
+        gathered the whole bake takes its shard so."""
+        self.shard = shard
+        self.baked_chunks = range(len(self.chunks)) if shard is None else shard_chunks(len(self.chunks), *shard)
+        self.shard_results = None if shard is None else {}
+        self.baked_vertices = sum(len(self.chunks[index][1]) for index in self.baked_chunks)
 
     # -- running --------------------------------------------------------------------------------------
     def step(self, budget_s: float = 0.1) -> bool:
@@ -173,7 +179,7 @@ class TransferJob(Job):
                                                          result.records.weight, result.records.replicate))
 
     def _run_here(self):
-        caster = bake.RayCaster(self.occluders) if self.settings.mode != "unshadowed" else None
+        caster = self.occluders.ray_caster() if self.settings.mode != "unshadowed" else None
         yield
         for chunk_index in self.baked_chunks:
             yield from self._bake_chunk_here(caster, chunk_index)
@@ -210,7 +216,7 @@ class TransferJob(Job):
         bakes the chunks it owns."""
         with tempfile.TemporaryDirectory(prefix="prt_bake_") as folder:
             forking = self.worker_command == FORK
-            caster = bake.RayCaster(self.occluders) if forking else None  # built once, before forking: shared
+            caster = self.occluders.ray_caster() if forking else None  # built before forking: shared
             if not forking:
                 saved_job = os.path.join(folder, "job.npz")
                 job_file.save_job(saved_job, self.receivers, self.occluders, self.settings)
@@ -238,7 +244,7 @@ class TransferJob(Job):
                     threading.Thread(target=read_lines, args=(started.stdout, lines), daemon=True).start()
                 if shared_queue is not None:
                     shared_queue.fill()
-                caster = caster or bake.RayCaster(self.occluders)  # spawned workers start meanwhile
+                caster = self.occluders.ray_caster()  # spawned workers start meanwhile
                 running = len(workers)
                 for chunk_index in mine:
                     yield from self._bake_chunk_here(caster, chunk_index)

@@ -105,19 +105,23 @@ class WrappingJob(Job):
 
 
 class JobSequence(Job):
-    """Jobs run one after another as one job: its progress weighs each by its share of the work."""
+    """Jobs run one after another as one job: its progress weighs each by its share of the work. The sequence and
+    each of its jobs are timed from their first step, not from when they were made (a farm bake's scene is gathered
+    before its cluster has baked the parts it merges)."""
 
-    def __init__(self, jobs: list, shares: list, label: str):
+    def __init__(self, jobs: list, shares: list, label: str, clock=time.perf_counter):
         self.jobs = jobs
         self.shares = [share / sum(shares) for share in shares]
         self.current = 0
         self._started = 0  # jobs begun
-        self.progress = Progress(label)
+        self.progress = Progress(label, clock)
 
     def step(self, budget_s: float) -> bool:
         if self.current < len(self.jobs):
             job = self.jobs[self.current]
-            if self.current == self._started:  # its clock runs from its first step, not from when it was made
+            if self.current == self._started:
+                if not self._started:
+                    self.progress.start = self.progress.clock()
                 job.progress.start = job.progress.clock()
                 self._started += 1
             if job.step(budget_s):

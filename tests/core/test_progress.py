@@ -25,13 +25,15 @@ class Waiting(Job):
         return self.left <= 0
 
 
-def test_each_job_of_a_sequence_is_timed_from_its_first_step_and_weighed_by_its_share():
+def test_a_sequence_and_each_of_its_jobs_are_timed_from_their_first_step_and_weighed_by_their_share():
     clock = Clock()
     first, second = Waiting(clock, 3), Waiting(clock, 2)  # both made now, as a bake makes its jobs up front
-    sequence = JobSequence([first, second], [3, 1], "both")
+    sequence = JobSequence([first, second], [3, 1], "both", clock)
+    clock.now += 10.0  # made long before it runs, as a farm bake's merge
     assert not sequence.step(1.0)
     assert sequence.progress.fraction == 0.75 * 0.5
     while not sequence.step(1.0):
         pass
-    assert second.progress.elapsed == 2.0  # its own two steps, not the 5 s since it was made
+    assert second.progress.elapsed == 2.0  # its own two steps, not the 15 s since it was made
+    assert sequence.progress.elapsed == 5.0
     assert sequence.progress.fraction == 1.0
