@@ -38,13 +38,13 @@ def export(scene, path: str, profile_name: str) -> dict:
     baked = [(ob, *_read_bake(ob.data)) for ob in baked_objects(scene)]
     if not baked:
         raise InputError("no visible mesh has a PRT bake to export")
-    packs = {ob.name: _pack(ob, transfer, meta, profile) for ob, transfer, meta, _ in baked}
+    packs = {ob.name: _pack(ob, transfer, meta, planes, profile) for ob, transfer, meta, _, planes in baked}
     shining, window, light_source = _lights(scene)
-    orders = {meta["order"] for _, _, meta, _ in baked}
+    orders = {meta["order"] for _, _, meta, _, _ in baked}
     cache = core_lights.LightCache()
     totals = cache.totals(shining, orders, window)
     with _export_scene(scene) as temporary:
-        for ob, transfer, meta, corner_points in baked:
+        for ob, transfer, meta, corner_points, _ in baked:
             mesh = _link_copy(temporary, ob).data
             _write_packing(mesh, packs[ob.name], corner_points)
             display.write_display_colours(mesh, transfer, totals[meta["order"]], corner_points)
@@ -61,23 +61,23 @@ def export(scene, path: str, profile_name: str) -> dict:
 
 
 def _read_bake(mesh):
-    """(transfer, metadata, corner points): per shading point, or for a texel bake per face corner, sampled from its
-    maps at the corner's lightmap UV (the colours COLOR_0 carries), with every corner its own point."""
+    """(transfer, metadata, corner points, texel planes): per shading point, or for a texel bake per face corner,
+    sampled from its maps at the corner's lightmap UV (the colours COLOR_0 carries), with every corner its own point,
+    and the maps' planes as read (None for a bake per point)."""
     if not texel_maps.is_texel_bake(mesh):
-        return (*storage.read_transfer(mesh), storage.corner_points_of(mesh))
+        return (*storage.read_transfer(mesh), storage.corner_points_of(mesh), None)
     planes, meta = texel_maps.read_planes(mesh)
     image = planes.T.reshape(meta["height"], meta["width"], -1)
     uvs = np.empty(2 * len(mesh.loops), dtype=np.float32)
     mesh.uv_layers[meta["uv_map"]].uv.foreach_get("vector", uvs)
     transfer = texels.sample_bilinear(image, uvs.reshape(-1, 2).astype(np.float64)).astype(np.float32)
-    return transfer, meta, np.arange(len(mesh.loops))
+    return transfer, meta, np.arange(len(mesh.loops)), planes
 
 
-def _pack(ob, transfer, meta, profile):
-    """The profile's packing of a per-point bake, or a texel bake's maps."""
-    if not texel_maps.is_texel_bake(ob.data):
+def _pack(ob, transfer, meta, planes, profile):
+    """The profile's packing of a per-point bake, or a texel bake's maps (its planes)."""
+    if planes is None:
         return gltf_pack.pack(gltf_pack.to_gltf_frame(transfer).astype(np.float32), profile, ob.name)
-    planes = texel_maps.read_planes(ob.data)[0]
     texcoord = f"TEXCOORD_{ob.data.uv_layers.find(meta['uv_map'])}"  # the exporter writes every UV map, in order
     return gltf_pack.pack_maps(gltf_pack.to_gltf_frame(planes.T).T, meta["width"], meta["height"], texcoord)
 
