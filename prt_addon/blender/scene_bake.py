@@ -117,6 +117,8 @@ class SceneBake(WrappingJob):
                 self.problems.append(str(problem))
         if not receivers:
             raise InputError("nothing to bake: " + ("; ".join(self.problems) or "no mesh objects"))
+        if farm or shard is not None:  # before the occluders are gathered
+            texel_bake.refuse_on_farm(self.objects, storage_options or {})
         # Taken now, from the scene as it is baked: objects may move while a modal bake runs.
         self.fingerprints = fingerprint.fingerprints(depsgraph, self.objects, settings, storage_options)
         # Every visible mesh reflects light onto the receivers in an interreflected bake, so its transfer is solved
@@ -129,8 +131,6 @@ class SceneBake(WrappingJob):
             if sources <= {ob.name for ob in self.objects}:
                 self.notes.append("no visible mesh besides the receivers casts shadows; "
                                   "each receiver is shadowed by the receivers only")
-        if farm or shard is not None:
-            texel_bake.refuse_on_farm(self.objects, storage_options or {})
         coloured = bouncing and _albedo_channels([s.albedo for s in self.surfaces.all])[0].shape[1] > 1
         planned = texel_bake.plan(self.objects, receivers, occluders, settings, storage_options or {}, depsgraph,
                                   self.problems, coloured)
