@@ -96,7 +96,7 @@ def validate_image(context, camera: str | None = None, samples: int = 64, passes
         notes.append("interreflected bakes: Cycles bounces light between white surfaces, the bake between its "
                      "materials' albedo; the two agree where that albedo is white")
     with tempfile.TemporaryDirectory(prefix="prt_validate_image_") as folder, \
-            _render_settings_restored(scene, receivers):
+            _render_settings_restored(scene):
         scene.camera = camera_object
         scene.render.resolution_x, scene.render.resolution_y = resolution
         scene.render.resolution_percentage = 100
@@ -120,7 +120,7 @@ def validate_image(context, camera: str | None = None, samples: int = 64, passes
 
 
 @contextmanager
-def _render_settings_restored(scene, receivers):
+def _render_settings_restored(scene):
     """Puts back what the renders below change beyond blender.cycles.scene_restored: the camera, resolution,
     output, view transform, EEVEE's and Workbench's settings, the PRT display switches and object colours."""
     render, shading, display = scene.render, scene.display.shading, scene.prt_display
@@ -307,7 +307,7 @@ def compare_images(context, resolution=(160, 90), samples=LIGHT_SAMPLES, passes=
     if not scene.prt_display.show_prt:
         raise InputError("the PRT display is off: EEVEE would not show PRT")
     with tempfile.TemporaryDirectory(prefix="prt_compare_images_") as folder, \
-            _render_settings_restored(scene, []):
+            _render_settings_restored(scene):
         scene.render.film_transparent = True
         scene.render.resolution_x, scene.render.resolution_y = resolution
         scene.render.resolution_percentage = 100
