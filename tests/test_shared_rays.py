@@ -10,7 +10,7 @@ from quadrature import polygon_transfer
 
 from prt_addon.core import bake, corners, interreflect, job
 
-# Three corner normals of one vertex, within 60° of the first (they share), and one beyond (it casts alone).
+# Three corner normals of one vertex, which share one ray group in the tests below.
 NORMALS = np.array([[0.0, 0.0, 1.0], [np.sin(0.6), 0.0, np.cos(0.6)], [0.0, -np.sin(0.9), np.cos(0.9)]])
 ROOF = np.array([[-0.4, -1.0, 0.8], [1.2, -1.0, 0.8], [1.2, 0.6, 1.1], [-0.4, 0.6, 1.1]])  # tilted, off-centre
 
@@ -37,11 +37,36 @@ def bake_points(receiver, occluders, **settings):
     return the_job.run()[0]
 
 
-def test_ray_groups_join_the_corner_normals_near_their_vertex_normal():
-    point_vertices = np.array([0, 1, 0, 0, 1])
-    normals = np.array([[0, 0, 1.0], [1.0, 0, 0], [0, np.sin(0.9), np.cos(0.9)], [0, 1.0, 0], [0, 0, -1.0]])
-    # 0.9 rad = 52° from its vertex's normal: shares; 90° and 180°: alone.
-    np.testing.assert_array_equal(corners.ray_groups(point_vertices, normals, 2), [0, 1, 0, 3, 4])
+def test_ray_groups_part_a_vertex_only_where_its_normals_spread_beyond_the_share_angle():
+    # Vertex 0 is a thin sheet's rim: two corners face up, two down, one out (90° from both); vertex 1 is alone;
+    # vertex 2's three normals are 40° from their mean but 80° apart.
+    tilt = np.radians(40.0)
+    spread = [[np.sin(tilt) * np.cos(a), np.sin(tilt) * np.sin(a), np.cos(tilt)] for a in (0.0, 2.1, 4.2)]
+    point_vertices = np.array([0, 1, 2, 0, 0, 0, 0, 2, 2])
+    normals = np.array([[0, 0, 1.0], [1.0, 0, 0], spread[0], [0, 0, -1.0], [0, 0.1, 0.995], [1.0, 0, 0],
+                        [0, 0, -1.0], spread[1], spread[2]])
+    np.testing.assert_array_equal(corners.ray_groups(point_vertices, normals, 3), [0, 1, 2, 3, 0, 5, 3, 2, 2])
+
+
+def test_every_ray_group_lies_within_the_share_angle_of_its_mean_normal():
+    """Random corner normals: a group never spans two vertices, its normals are within SHARE_COSINE of their mean,
+    and a vertex whose normals all are forms one group."""
+    generator = np.random.default_rng(5)
+    point_vertices = np.concatenate([np.arange(300), generator.integers(0, 300, 900)])
+    normals = generator.normal(size=(1200, 3)) * [0.6, 0.6, 0.0] + [0.0, 0.0, 1.0]
+    normals /= np.linalg.norm(normals, axis=1, keepdims=True)
+    labels = corners.ray_groups(point_vertices, normals, 300)
+    groups_per_vertex = [len(np.unique(labels[point_vertices == vertex])) for vertex in range(300)]
+    assert 1 < max(groups_per_vertex) and 150 < groups_per_vertex.count(1) < 300  # teeth: both cases occur
+    for label in np.unique(labels):
+        members = labels == label
+        assert len(np.unique(point_vertices[members])) == 1 and label == np.flatnonzero(members).min()
+        mean = normals[members].sum(0) / np.linalg.norm(normals[members].sum(0))
+        assert (normals[members] @ mean).min() >= corners.SHARE_COSINE - 1e-12
+    for vertex in np.flatnonzero(np.array(groups_per_vertex) > 1):
+        own = normals[point_vertices == vertex]
+        mean = own.sum(0) / np.linalg.norm(own.sum(0))
+        assert (own @ mean).min() < corners.SHARE_COSINE
 
 
 @pytest.mark.parametrize("as_polygon", [False, True], ids=["rays", "closed-form roof"])

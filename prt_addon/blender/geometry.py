@@ -70,6 +70,12 @@ class Surface:
     albedo: np.ndarray | None    # (P, 3) linear base colour per point, when asked for
     corner_points: np.ndarray | None = None  # (C,) each face corner's point; None: the points are the vertices
     split_vertices: int = 0
+    extra_points: int = 0  # the last rows: split vertices' further points, each at its vertex's position
+
+    @property
+    def vertex_positions(self) -> np.ndarray:
+        """(V, 3) each vertex's position once."""
+        return self.receiver.positions[:len(self.receiver.positions) - self.extra_points]
 
 
 def surface_from_object(ob, depsgraph, notes: list, for_storage: bool = True, albedo: bool = False) -> Surface:
@@ -128,7 +134,8 @@ def surface_from_object(ob, depsgraph, notes: list, for_storage: bool = True, al
     groups = corners.ray_groups(points.point_vertices, world_normals, len(vertex_normals)) if split else None
     receiver = bake.Receiver(ob.name, world_positions, world_normals, bake.Receiver.key_for(ob.name), inward, groups,
                              surface_step)
-    return Surface(receiver, triangles, colours, points.corner_points if split else None, points.split_vertices)
+    return Surface(receiver, triangles, colours, points.corner_points if split else None, points.split_vertices,
+                   points.extra_points)
 
 
 def _towards_faces(triangles: np.ndarray, positions: np.ndarray) -> np.ndarray:

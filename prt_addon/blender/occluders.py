@@ -49,7 +49,11 @@ def occluders_from_depsgraph(depsgraph, surfaces=()) -> tuple[bake.Occluders, se
     if not len(triangles):
         return bake.Occluders(vertices, triangles, np.zeros((0, 3)), solved_vertices=solved), sources
     found = polygons.largest([polygon for polygon in flat if polygon is not None], polygons.MAX_POLYGONS)
-    hull = convex_hull_points(vertices[np.unique(triangles)])
+    hull_rows = np.zeros(len(vertices), dtype=bool)
+    hull_rows[triangles] = True
+    for surface, end in zip(surfaces, offsets[1:]):  # not twice where a split vertex's points repeat its position
+        hull_rows[end - surface.extra_points:end] = False
+    hull = convex_hull_points(vertices[hull_rows])
     return bake.Occluders(vertices, triangles, hull, found, solved_vertices=solved), sources
 
 

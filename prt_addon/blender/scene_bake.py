@@ -22,7 +22,7 @@ INTERPOLATION_KEYS = ("est_interp_rms_rel_error", "est_interp_max_rel_error", "i
 def _vertex_count(surface) -> int:
     """The surface's vertices (a split vertex's points share its position): probes follow the surface, not how
     finely its normals split it."""
-    return len(np.unique(surface.receiver.positions, axis=0))
+    return len(np.unique(surface.vertex_positions, axis=0))
 
 
 def worker_launch():

@@ -23,7 +23,7 @@ from . import fingerprint, job_file
 from .errors import InputError
 from .workers import shard_chunks
 
-PART_FORMAT = "prt-part-3"  # also names how chunks are cut: 3 takes a split mesh's ray groups in order of size
+PART_FORMAT = "prt-part-4"  # also names how chunks are cut: 4 parts a split vertex's points about their mean normal
 PROBES = "probe_"  # the prefix of the probes' arrays
 
 
