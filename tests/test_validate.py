@@ -221,6 +221,10 @@ def test_validate_command_writes_a_line_and_json_and_fails_in_one_line(empty_sce
     bake(samples=32)
     spoiled = {40: 5.0, 12: 4.0, 66: 3.0, 8: 2.0, 77: 1.0}  # 40, under the cube, the worst
     raise_dc_transfer(floor.data, spoiled)
+    ground = grid("Ground")  # saved selected and unbaked: validating the file's bakes passes over it
+    ground.hide_render = True
+    for ob in bpy.data.objects:
+        ob.select_set(ob is ground)
     bpy.ops.wm.save_as_mainfile(filepath=str(path))
     result = run_cli("validate", path, "--samples", 4, "--passes", 2, "--report", report)
     assert result.returncode == 0, result.stderr

@@ -35,7 +35,7 @@ def export(scene, path: str, profile_name: str) -> dict:
     profile = gltf_pack.PROFILES.get(profile_name)
     if profile is None:
         raise InputError(f"unknown profile {profile_name!r}: expected one of {', '.join(gltf_pack.PROFILES)}")
-    baked = [(ob, *_read_bake(ob.data)) for ob in baked_objects(scene)]
+    baked = [(ob, *_read_bake(ob.data)) for ob in storage.baked_objects(scene.objects)]
     if not baked:
         raise InputError("no visible mesh has a PRT bake to export")
     packs = {ob.name: _pack(ob, transfer, meta, planes, profile) for ob, transfer, meta, _, planes in baked}
@@ -89,11 +89,6 @@ def _window_extras(window, cache) -> dict:
         return {"window": window}
     return {"window": "tapered", "window_strengths": {str(order): strength
                                                        for order, strength in cache.auto_strengths.items()}}
-
-
-def baked_objects(scene) -> list:
-    return [ob for ob in scene.objects if ob.type == "MESH" and ob.visible_get()
-            and storage.METADATA_KEY in ob.data]
 
 
 def _lights(scene):

@@ -78,8 +78,7 @@ def validate_image(context, camera: str | None = None, samples: int = 64, passes
     camera_object = bpy.data.objects.get(camera) if camera else scene.camera
     if camera_object is None or camera_object.type != "CAMERA":
         raise InputError(f"no camera named {camera!r}" if camera else "the scene has no camera; give --camera")
-    receivers = [ob for ob in context.view_layer.objects
-                 if ob.type == "MESH" and ob.visible_get() and storage.METADATA_KEY in ob.data]
+    receivers = storage.baked_objects(context.view_layer.objects)
     if not receivers:
         raise InputError("no visible mesh has a PRT bake to validate")
     metas = [ob.data[storage.METADATA_KEY] for ob in receivers]

@@ -103,6 +103,11 @@ def write_metadata(mesh, result, settings: bake.BakeSettings, domain: str, split
     mesh.update()
 
 
+def baked_objects(objects) -> list:
+    """The visible meshes with a PRT bake among `objects`."""
+    return [ob for ob in objects if ob.type == "MESH" and ob.visible_get() and METADATA_KEY in ob.data]
+
+
 def remove_transfer(mesh):
     texel_maps.remove_maps(mesh)
     for name in [a.name for a in mesh.attributes if a.name.startswith(ATTRIBUTE_PREFIX)]:

@@ -127,7 +127,11 @@ class Validation(WrappingJob):
 
     def _receivers(self, context, object_names):
         found = []
-        for ob in geometry.receivers_from_selection(context, object_names):
+        # Unnamed and no selected mesh has a bake (a file saved with its floor selected): every visible one that has.
+        candidates = (geometry.receivers_from_selection(context, object_names)
+                      if object_names or storage.baked_objects(context.selected_objects)
+                      else storage.baked_objects(context.view_layer.objects))
+        for ob in candidates:
             try:
                 geometry.check_writable(ob)
                 _, meta = storage.read_transfer(ob.data)

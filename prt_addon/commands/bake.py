@@ -19,7 +19,8 @@ from .common import check_writable, log, names, open_file, save_bake, warn
 def add_parser(commands):
     parser = commands.add_parser("bake", help="bake SH transfer into a .blend file's meshes")
     parser.add_argument("file", nargs="?", help=".blend file to open (in Blender: defaults to the open file)")
-    parser.add_argument("--objects", help="comma-separated receiver names (default: every visible mesh)")
+    parser.add_argument("--objects", help="comma-separated receiver names (default: the file's selected meshes, else "
+                             "every visible mesh)")
     parser.add_argument("--preset", type=str.lower, choices=list(presets.PRESETS),
                         help="start from a preset's settings (see the README's table); options given override it")
     for setting in spec.BAKE + (spec.WORKERS,) + spec.TEXEL:

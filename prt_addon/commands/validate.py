@@ -13,7 +13,8 @@ from .common import log, names, open_file, warn, write_json
 def add_parser(commands):
     parser = commands.add_parser("validate", help="compare the PRT colours with Cycles under the same light")
     parser.add_argument("file", nargs="?", help="baked .blend file (in Blender: defaults to the open file)")
-    parser.add_argument("--objects", help="comma-separated names (default: every visible mesh with a bake)")
+    parser.add_argument("--objects", help="comma-separated names (default: the selected meshes when one has a bake, else "
+                             "every visible mesh with a bake)")
     parser.add_argument("--samples", type=int, default=DEFAULT_SAMPLES, help="Cycles samples per pass")
     parser.add_argument("--passes", type=int,
                         help=f"Cycles passes with different seeds; their spread measures Cycles' noise (≥ 2; default "

@@ -180,7 +180,7 @@ class PRT_OT_export_gltf(bpy.types.Operator, ExportHelper):
 
     @classmethod
     def poll(cls, context):
-        return context.mode == "OBJECT" and bool(gltf.baked_objects(context.scene))
+        return context.mode == "OBJECT" and bool(storage.baked_objects(context.scene.objects))
 
     def execute(self, context):
         try:

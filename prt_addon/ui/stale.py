@@ -12,7 +12,7 @@ import time
 import bpy
 from bpy.props import CollectionProperty, StringProperty
 
-from ..blender import geometry, storage
+from ..blender import storage
 from ..blender.fingerprint import stale_line, stale_receivers
 from .operators import BakeJob
 from .registration import classes_and_properties
@@ -37,7 +37,7 @@ class PRT_OT_check_stale(bpy.types.Operator):
         return context.mode == "OBJECT"
 
     def execute(self, context):
-        baked = [ob for ob in geometry.visible_mesh_objects(context) if storage.METADATA_KEY in ob.data]
+        baked = storage.baked_objects(context.view_layer.objects)
         if not baked:
             self.report({"INFO"}, "no visible mesh has a PRT bake")
             return {"CANCELLED"}
