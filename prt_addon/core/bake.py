@@ -170,6 +170,11 @@ def provably_unoccluded(positions, normals, hull, offset) -> np.ndarray:
     return highest - np.einsum("ij,ij->i", normals, positions) < 0.5 * offset
 
 
+def _vectors(vectors, count) -> np.ndarray:
+    """(count, 3) float64 from an iterable of mathutils Vectors (float32: exact in float64)."""
+    return np.fromiter(chain.from_iterable(vectors), dtype=np.float64, count=3 * count).reshape(count, 3)
+
+
 class RayCaster:
     """A BVHTree over the occluders, recentred so float32 precision does not depend on where the scene is."""
 
@@ -218,46 +223,59 @@ class RayCaster:
         offsets of its step. The corner points of one vertex share the search at the vertex, which also picks the
         points searched at their step (those facing some face near their vertex)."""
         stepped = surface + self.offset * steps
-        row, location, face_normal, own = self._near_vertices(surface)
-        dots = np.einsum("ij,ij->i", face_normal, normals[row])
+        row, face, location, face_normal, own = self._near_vertices(surface)
+        dots = np.einsum("ij,ij->i", face_normal[face], normals[row])
         facing = dots < FACING_COSINE
-        in_front = np.einsum("ij,ij->i", stepped[row] - location, face_normal) > -ON_SURFACE * self.offset
-        keep = facing & in_front & ~own
-        found = [(row[keep], dots[keep], face_normal[keep])]
+        # Only a face it faces and does not meet can be touched from a point's vertex: the rest need no location.
+        kept = np.flatnonzero(facing & ~own[face])
+        in_front = np.einsum("ij,ij->i", stepped[row[kept]] - location[face[kept]], face_normal[face[kept]])
+        kept = kept[in_front > -ON_SURFACE * self.offset]
+        rows, most_dots, normals_there = [row[kept]], [dots[kept]], [face_normal[face[kept]]]
         lying = np.zeros(len(surface), dtype=bool)
-        for r in np.unique(row[facing]):
-            point, normal = stepped[r], normals[r]
+        for r in np.unique(row[facing]).tolist():
+            point, normal = stepped[r], normals[r].tolist()  # Vector.dot reads a list fastest
             for nearest, normal_there, _, distance in self.tree.find_nearest_range(tuple(point), self.offset):
                 dot = normal_there.dot(normal)
                 if dot < FACING_COSINE and np.dot(point - np.asarray(nearest), normal_there) > -ON_SURFACE * self.offset:
-                    found.append(([r], [dot], [normal_there]))
+                    rows.append([r])
+                    most_dots.append([dot])
+                    normals_there.append([normal_there])
                     lying[r] |= distance <= ON_SURFACE * self.offset
-        row, dots, face_normal = (np.concatenate(part) for part in zip(*found))
+        row, dots = np.concatenate(rows), np.concatenate(most_dots)
         touched = np.zeros_like(normals)
         most = np.lexsort((dots, row))  # each row's most facing face first
         first = most[np.r_[True, row[most][1:] != row[most][:-1]]] if len(row) else most
-        touched[row[first]] = np.asarray(face_normal, dtype=np.float64).reshape(-1, 3)[first]
+        touched[row[first]] = np.concatenate(normals_there, dtype=np.float64).reshape(-1, 3)[first]
         return touched, lying
 
     def _near_vertices(self, surface):
         """Every occluder face within TOUCH_REACH offsets of each row's position (c, 3), one search per distinct
-        position: (row (F,), nearest point (F, 3), face normal (F, 3), own (F,) bool: the face has a corner at the
-        row's position)."""
-        places, place_of_row = np.unique(surface, axis=0, return_inverse=True)
-        place_of_row = place_of_row.ravel()
-        found = [[(index, *location, *normal) for location, normal, index, _ in near] for near in
-                 map(self.tree.find_nearest_range, map(tuple, places.tolist()), repeat(TOUCH_REACH * self.offset))]
-        counts = np.array([len(near) for near in found])
-        faces = np.array(list(chain.from_iterable(found)), dtype=np.float64).reshape(-1, 7)
-        face_place = np.repeat(np.arange(len(places)), counts)
-        corners = self.vertices[self.triangles[faces[:, 0].astype(np.int64)]]  # (F, 3, 3)
-        own = (corners == places[face_place][:, None]).all(axis=2).any(axis=1)
-        # Each row meets its place's faces: faces are in place order, so a place's start and count locate them.
+        position: (row (P,), face (P,)) pairs, and per face found (F,): its nearest point (F, 3), normal (F, 3) and
+        own (F,) bool (the face has a corner at the position). Nearest points are read only for faces not own (zero
+        for the own faces, which nothing measures from): most faces found are a vertex's own, and each value read
+        from a search costs a Python object."""
+        # Rows at one position are one place (+ 0.0: -0.0 and 0.0 are one place); the order of places does not
+        # matter, since each row's faces are listed in its place's search order.
+        as_bytes = np.ascontiguousarray(surface + 0.0).view(np.dtype((np.void, 3 * surface.itemsize))).ravel()
+        places, place_of_row = np.unique(as_bytes, return_inverse=True)
+        places = places.view(surface.dtype).reshape(-1, 3)
+        near = list(map(self.tree.find_nearest_range, map(tuple, places.tolist()),
+                        repeat(TOUCH_REACH * self.offset)))
+        counts = np.fromiter(map(len, near), dtype=np.int64, count=len(near))
+        found = list(chain.from_iterable(near))  # (location, normal, index, distance) per face, in place order
+        index = np.fromiter(map(itemgetter(2), found), dtype=np.int64, count=len(found))
+        corners = self.vertices[self.triangles[index]]  # (F, 3, 3)
+        own = (corners == np.repeat(places, counts, axis=0)[:, None]).all(axis=2).any(axis=1)
+        normal = _vectors(map(itemgetter(1), found), len(found))
+        other = np.flatnonzero(~own)
+        location = np.zeros_like(normal)
+        location[other] = _vectors(map(itemgetter(0), map(found.__getitem__, other.tolist())), len(other))
+        # Each row meets its place's faces: a place's first face and count locate them.
         per_row = counts[place_of_row]
         row = np.repeat(np.arange(len(surface)), per_row)
         first_face = np.r_[0, np.cumsum(counts)[:-1]]
         face = np.repeat(first_face[place_of_row] - np.r_[0, np.cumsum(per_row)[:-1]], per_row) + np.arange(len(row))
-        return row, faces[face, 1:4], faces[face, 4:], own[face]
+        return row, face, location, normal, own
 
     def front_hits(self, origins, directions, triangle, distance):
         """(barycentric (H, 3), front (H,) bool) for hits: the light leaving a surface is known on its front."""
