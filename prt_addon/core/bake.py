@@ -236,7 +236,7 @@ class RayCaster:
             point, normal = stepped[r], normals[r].tolist()  # Vector.dot reads a list fastest
             for nearest, normal_there, _, distance in self.tree.find_nearest_range(tuple(point), self.offset):
                 dot = normal_there.dot(normal)
-                if dot < FACING_COSINE and np.dot(point - np.asarray(nearest), normal_there) > -ON_SURFACE * self.offset:
+                if dot < FACING_COSINE and (point - np.asarray(nearest)).dot(normal_there) > -ON_SURFACE * self.offset:
                     rows.append([r])
                     most_dots.append([dot])
                     normals_there.append([normal_there])
@@ -264,9 +264,13 @@ class RayCaster:
         counts = np.fromiter(map(len, near), dtype=np.int64, count=len(near))
         found = list(chain.from_iterable(near))  # (location, normal, index, distance) per face, in place order
         index = np.fromiter(map(itemgetter(2), found), dtype=np.int64, count=len(found))
-        corners = self.vertices[self.triangles[index]]  # (F, 3, 3)
-        own = (corners == np.repeat(places, counts, axis=0)[:, None]).all(axis=2).any(axis=1)
-        normal = _vectors(map(itemgetter(1), found), len(found))
+        same = self.vertices[self.triangles[index]] == np.repeat(places, counts, axis=0)[:, None]  # (F, 3, 3)
+        corner_there = same[..., 0] & same[..., 1] & same[..., 2]  # (a reduction over 3 is slower)
+        own = corner_there[:, 0] | corner_there[:, 1] | corner_there[:, 2]
+        # A face's normal is the same from every search (the tree computes it from the triangle alone), and a face
+        # is usually found from each of its corners: it is read once.
+        faces, first, face_of = np.unique(index, return_index=True, return_inverse=True)
+        normal = _vectors(map(itemgetter(1), map(found.__getitem__, first.tolist())), len(faces))[face_of.ravel()]
         other = np.flatnonzero(~own)
         location = np.zeros_like(normal)
         location[other] = _vectors(map(itemgetter(0), map(found.__getitem__, other.tolist())), len(other))
@@ -475,9 +479,9 @@ def _blocked_round(caster, origins, normals, lattice, unshadowed, flat, settings
     T = β·T_unshadowed + mean(W·((1 − β)·Y − (1 − V)·Y)), a control variate whose coefficient β is its visible
     fraction this round: β = 1 samples only blocked light (exact for an open vertex), β = 0 only visible light
     (exact for a buried one), in between it tracks the optimal coefficient.
-    Flat polygons (`flat`: their cone planes and the transfer G they block; None: none) are exact: a ray counts as blocked
-    only for what they do not explain, 1 − V − g with g its hits on them, and G is subtracted; unbiased for any
-    polygon, and P's edges add no noise where P really is occluder geometry."""
+    Flat polygons (`flat`: their cone planes and the transfer G they block; None without any) are exact: a ray
+    counts as blocked only for what they do not explain, 1 − V − g with g its hits on them, and G is subtracted;
+    unbiased for any polygon, and P's edges add no noise where P really is occluder geometry."""
     replicates, order = settings.replicates, settings.order
     groups, size = normals.shape[:2]
     lattice_frames, floor, points, shifts = lattice
