@@ -170,6 +170,11 @@ def provably_unoccluded(positions, normals, hull, offset) -> np.ndarray:
     return highest - np.einsum("ij,ij->i", normals, positions) < 0.5 * offset
 
 
+def _vectors(vectors, count) -> np.ndarray:
+    """(count, 3) float64 from an iterable of mathutils Vectors (float32: exact in float64)."""
+    return np.fromiter(chain.from_iterable(vectors), dtype=np.float64, count=3 * count).reshape(count, 3)
+
+
 class RayCaster:
     """A BVHTree over the occluders, recentred so float32 precision does not depend on where the scene is."""
 
@@ -218,46 +223,63 @@ class RayCaster:
         offsets of its step. The corner points of one vertex share the search at the vertex, which also picks the
         points searched at their step (those facing some face near their vertex)."""
         stepped = surface + self.offset * steps
-        row, location, face_normal, own = self._near_vertices(surface)
-        dots = np.einsum("ij,ij->i", face_normal, normals[row])
+        row, face, location, face_normal, own = self._near_vertices(surface)
+        dots = np.einsum("ij,ij->i", face_normal[face], normals[row])
         facing = dots < FACING_COSINE
-        in_front = np.einsum("ij,ij->i", stepped[row] - location, face_normal) > -ON_SURFACE * self.offset
-        keep = facing & in_front & ~own
-        found = [(row[keep], dots[keep], face_normal[keep])]
+        # Only a face it faces and does not meet can be touched from a point's vertex: the rest need no location.
+        kept = np.flatnonzero(facing & ~own[face])
+        in_front = np.einsum("ij,ij->i", stepped[row[kept]] - location[face[kept]], face_normal[face[kept]])
+        kept = kept[in_front > -ON_SURFACE * self.offset]
+        rows, most_dots, normals_there = [row[kept]], [dots[kept]], [face_normal[face[kept]]]
         lying = np.zeros(len(surface), dtype=bool)
-        for r in np.unique(row[facing]):
-            point, normal = stepped[r], normals[r]
+        for r in np.unique(row[facing]).tolist():
+            point, normal = stepped[r], normals[r].tolist()  # Vector.dot reads a list fastest
             for nearest, normal_there, _, distance in self.tree.find_nearest_range(tuple(point), self.offset):
                 dot = normal_there.dot(normal)
-                if dot < FACING_COSINE and np.dot(point - np.asarray(nearest), normal_there) > -ON_SURFACE * self.offset:
-                    found.append(([r], [dot], [normal_there]))
+                if dot < FACING_COSINE and (point - np.asarray(nearest)).dot(normal_there) > -ON_SURFACE * self.offset:
+                    rows.append([r])
+                    most_dots.append([dot])
+                    normals_there.append([normal_there])
                     lying[r] |= distance <= ON_SURFACE * self.offset
-        row, dots, face_normal = (np.concatenate(part) for part in zip(*found))
+        row, dots = np.concatenate(rows), np.concatenate(most_dots)
         touched = np.zeros_like(normals)
         most = np.lexsort((dots, row))  # each row's most facing face first
         first = most[np.r_[True, row[most][1:] != row[most][:-1]]] if len(row) else most
-        touched[row[first]] = np.asarray(face_normal, dtype=np.float64).reshape(-1, 3)[first]
+        touched[row[first]] = np.concatenate(normals_there, dtype=np.float64).reshape(-1, 3)[first]
         return touched, lying
 
     def _near_vertices(self, surface):
         """Every occluder face within TOUCH_REACH offsets of each row's position (c, 3), one search per distinct
-        position: (row (F,), nearest point (F, 3), face normal (F, 3), own (F,) bool: the face has a corner at the
-        row's position)."""
-        places, place_of_row = np.unique(surface, axis=0, return_inverse=True)
-        place_of_row = place_of_row.ravel()
-        found = [[(index, *location, *normal) for location, normal, index, _ in near] for near in
-                 map(self.tree.find_nearest_range, map(tuple, places.tolist()), repeat(TOUCH_REACH * self.offset))]
-        counts = np.array([len(near) for near in found])
-        faces = np.array(list(chain.from_iterable(found)), dtype=np.float64).reshape(-1, 7)
-        face_place = np.repeat(np.arange(len(places)), counts)
-        corners = self.vertices[self.triangles[faces[:, 0].astype(np.int64)]]  # (F, 3, 3)
-        own = (corners == places[face_place][:, None]).all(axis=2).any(axis=1)
-        # Each row meets its place's faces: faces are in place order, so a place's start and count locate them.
+        position: (row (P,), face (P,)) pairs, and per face found (F,): its nearest point (F, 3), normal (F, 3) and
+        own (F,) bool (the face has a corner at the position). Nearest points are read only for faces not own (zero
+        for the own faces, which nothing measures from): most faces found are a vertex's own, and each value read
+        from a search costs a Python object."""
+        # Rows at one position are one place (+ 0.0: -0.0 and 0.0 are one place); the order of places does not
+        # matter, since each row's faces are listed in its place's search order.
+        as_bytes = np.ascontiguousarray(surface + 0.0).view(np.dtype((np.void, 3 * surface.itemsize))).ravel()
+        places, place_of_row = np.unique(as_bytes, return_inverse=True)
+        places = places.view(surface.dtype).reshape(-1, 3)
+        near = list(map(self.tree.find_nearest_range, map(tuple, places.tolist()),
+                        repeat(TOUCH_REACH * self.offset)))
+        counts = np.fromiter(map(len, near), dtype=np.int64, count=len(near))
+        found = list(chain.from_iterable(near))  # (location, normal, index, distance) per face, in place order
+        index = np.fromiter(map(itemgetter(2), found), dtype=np.int64, count=len(found))
+        same = self.vertices[self.triangles[index]] == np.repeat(places, counts, axis=0)[:, None]  # (F, 3, 3)
+        corner_there = same[..., 0] & same[..., 1] & same[..., 2]  # (a reduction over 3 is slower)
+        own = corner_there[:, 0] | corner_there[:, 1] | corner_there[:, 2]
+        # A face's normal is the same from every search (the tree computes it from the triangle alone), and a face
+        # is usually found from each of its corners: it is read once.
+        faces, first, face_of = np.unique(index, return_index=True, return_inverse=True)
+        normal = _vectors(map(itemgetter(1), map(found.__getitem__, first.tolist())), len(faces))[face_of.ravel()]
+        other = np.flatnonzero(~own)
+        location = np.zeros_like(normal)
+        location[other] = _vectors(map(itemgetter(0), map(found.__getitem__, other.tolist())), len(other))
+        # Each row meets its place's faces: a place's first face and count locate them.
         per_row = counts[place_of_row]
         row = np.repeat(np.arange(len(surface)), per_row)
         first_face = np.r_[0, np.cumsum(counts)[:-1]]
         face = np.repeat(first_face[place_of_row] - np.r_[0, np.cumsum(per_row)[:-1]], per_row) + np.arange(len(row))
-        return row, faces[face, 1:4], faces[face, 4:], own[face]
+        return row, face, location, normal, own
 
     def front_hits(self, origins, directions, triangle, distance):
         """(barycentric (H, 3), front (H,) bool) for hits: the light leaving a surface is known on its front."""
@@ -289,8 +311,6 @@ def shadowed_chunk(caster: RayCaster, positions, normals, inward, keys, settings
     skipped = has_surface & (open_sky | contact)
     rays = np.zeros(count, dtype=np.int64)  # cast from each row
     used = np.zeros(count, dtype=np.int64)  # each row's estimate rests on: its group's
-    tangents, bitangents = sampling.orthonormal_basis(np.where(has_surface[:, None], normals, [0.0, 0.0, 1.0]))
-    frames = np.stack([tangents, bitangents, normals], axis=1)
     # A point touching a surface at an angle starts its rays in front of both (along the bisector of the two
     # normals, a step along its faces), so rays that cross that surface are blocked there and the others leave as
     # from its own face.
@@ -300,38 +320,49 @@ def shadowed_chunk(caster: RayCaster, positions, normals, inward, keys, settings
     if labels is not None:  # a point touching a surface at an angle needs its own lifted origin: it casts alone
         labels = np.where(facing, -1 - np.arange(count), labels)
     sets = ray_sets(labels, np.flatnonzero(has_surface & ~skipped))
+    lattices = []  # per set: each group's lattice frames (g, 3, 3) and the floor of its cap (g,), None: a hemisphere
     for members in sets:
-        if members.shape[1] > 1:
-            origins[members] = _shared_origins(origins[members], positions[members[:, 0]], normals[members],
-                                               caster.offset)[:, None]
+        if members.shape[1] == 1:
+            lattices.append((_frames(normals[members[:, 0]]), None))
+            continue
+        cap_frames, floor, climbs = _caps(normals[members])
+        origins[members] = _shared_origins(origins[members], positions[members[:, 0]], normals[members],
+                                           cap_frames[:, 2], climbs, caster.offset)[:, None]
+        lattices.append((cap_frames, floor))
     cones, flat_blocked = _flat_shadows(caster, origins, normals, order)
     rounds = []  # (rows, rays per row, transfer mean, transfer variance), combined below
     hits = [] if settings.mode == "interreflected" else None  # (chunk row, triangle, barycentric, weight)
-    plan = [(settings.points_per_replicate, members) for members in sets]
+    plan = [(settings.points_per_replicate, members, lattice) for members, lattice in zip(sets, lattices)]
     for round_index in range(MAX_ROUNDS):
-        for per_replicate, members in plan:
+        for per_replicate, members, (lattice_frames, floor) in plan:
             group_rays = replicates * per_replicate
+            points = sampling.fibonacci_lattice(per_replicate)
+            stream = keys[members[:, 0], None] * STREAMS_PER_VERTEX + round_index * replicates + np.arange(replicates)
+            shifts = sampling.hash_uniform(settings.seed, stream.ravel(), 2).reshape(len(members), replicates, 2)
             # A round weighs at most RAYS_PER_BATCH rays × rows at a time (a row of a shared group weighs all of its
             # group's rays): bounded memory, each round's arrays small enough to stay in cache (the flat-shaded cow's
             # rounds of 128 shared groups took 1.3-1.5× the CPU of rounds of 42), and progress (and Esc) between
             # batches. Every group keeps its own random streams, so batching never changes a result.
             batch = max(1, RAYS_PER_BATCH // (group_rays * members.shape[1]))
-            for part in np.array_split(members, np.arange(batch, len(members), batch)):
-                flat = None if cones is None else cones[part], flat_blocked[part]
-                mean, variance, round_hits = _blocked_round(caster, origins[part[:, 0]], frames[part],
-                                                            unshadowed[part], flat, keys[part[:, 0]], round_index,
-                                                            per_replicate, settings)
-                rows = part.ravel()
+            for first in range(0, len(members), batch):
+                part = slice(first, first + batch)
+                groups = members[part]  # (g, k) rows
+                lattice = lattice_frames[part], None if floor is None else floor[part], points, shifts[part]
+                flat = None if cones is None else (cones[groups], flat_blocked[groups])
+                mean, variance, round_hits = _blocked_round(caster, origins[groups[:, 0]], normals[groups], lattice,
+                                                            unshadowed[groups], flat, settings)
+                rows = groups.ravel()
                 if hits is not None:
                     hits.append((rows[round_hits[0]], *round_hits[1:]))
                 rounds.append((rows, group_rays, mean.reshape(len(rows), -1), variance.reshape(len(rows), -1)))
                 used[rows] += group_rays
-                rays[part[:, 0]] += group_rays  # a group's rays are counted at its first row
-                yield int(len(part) * group_rays)
+                rays[groups[:, 0]] += group_rays  # a group's rays are counted at its first row
+                yield int(len(groups) * group_rays)
         if settings.target_error <= 0.0:
             break
         _, error = _combine(rounds, used, count, order)
-        plan = [(size, members[chosen]) for members in sets
+        plan = [(size, members[chosen], (frames[chosen], None if floor is None else floor[chosen]))
+                for members, (frames, floor) in zip(sets, lattices)
                 for size, chosen in _next_rounds(error[members].max(1), used[members[:, 0]], settings)]
         if not plan:
             break
@@ -409,22 +440,37 @@ def _combine(rounds, rays, count, order):
     return estimate, np.sqrt(variance.sum(1))
 
 
-def _shared_origins(origins, positions, normals, offset):
-    """(g, 3) one ray origin for each group of rows (g, k) at one vertex (`positions` (g, 3)): the mean of the rows'
-    own origins (g, k, 3), raised along the mean normal until it is at least `offset` above every row's tangent
-    plane (normals (g, k, 3)), as each row's own origin is."""
-    steps = (origins - positions[:, None]).mean(axis=1)
+def _frames(normals):
+    """(c, 3, 3) frames whose rows are a tangent, a bitangent and the unit normal (c, 3)."""
+    return np.stack([*sampling.orthonormal_basis(normals), normals], axis=1)
+
+
+def _caps(normals):
+    """For ray groups of rows (normals (g, k, 3), k > 1): the frames (g, 3, 3) of the cap their shared lattice
+    covers, around the rows' mean normal n̄ (the third row); the cap's floor s (g,), the lowest direction of the
+    rows' hemispheres, so that the cap is n̄·ω ≥ s; and each row's n·n̄ (g, k)."""
     mean_normal = sampling.unit_or_zero(normals.sum(axis=1))
+    climbs = np.einsum("gd,gkd->gk", mean_normal, normals)
+    closest = np.maximum(climbs.min(1), 0.0)
+    return _frames(mean_normal), -np.sqrt(1.0 - closest * closest), climbs
+
+
+def _shared_origins(origins, positions, normals, mean_normal, climbs, offset):
+    """(g, 3) one ray origin for each group of rows (g, k) at one vertex (`positions` (g, 3)): the mean of the rows'
+    own origins (g, k, 3), raised along the mean normal (g, 3) until it is at least `offset` above every row's
+    tangent plane (normals (g, k, 3); `climbs` (g, k): n·n̄, > 0 as the rows' normals are within 90° of each other),
+    as each row's own origin is."""
+    steps = (origins - positions[:, None]).mean(axis=1)
     heights = np.einsum("gd,gkd->gk", steps, normals)
-    climbs = np.einsum("gd,gkd->gk", mean_normal, normals)  # > 0: the rows' normals are within 90° of each other
     raise_by = np.maximum((offset - heights) / np.maximum(climbs, 1e-3), 0.0).max(axis=1)
     return positions + steps + raise_by[:, None] * mean_normal
 
 
-def _blocked_round(caster, origins, frames, unshadowed, flat, keys, round_index, per_replicate, settings):
-    """One round for g ray groups of k rows (origins (g, 3), keys (g,), the rest (g, k, ...)): each group casts R
-    replicates of its own shifted lattice from its origin. Returns the mean and variance over replicates of each
-    row's transfer estimate (g, k, n²), and the hits (interreflected mode).
+def _blocked_round(caster, origins, normals, lattice, unshadowed, flat, settings):
+    """One round for g ray groups of k rows (origins (g, 3), the rest (g, k, ...)): each group casts R replicates of
+    its own shifted lattice from its origin. `lattice`: each group's frames (g, 3, 3) and cap floor (g,) or None
+    (see _caps), the lattice points (m, 2) and each group's shifts (g, R, 2). Returns the mean and variance over
+    replicates of each row's transfer estimate (g, k, n²), and the hits (interreflected mode).
 
     A group of one samples its row's cosine lobe. A larger group samples the cosine lobe of its mean normal n̄,
     lowered to cover every row's hemisphere (the cap n̄·ω ≥ s); each row weighs each direction by its own cosine
@@ -433,71 +479,73 @@ def _blocked_round(caster, origins, frames, unshadowed, flat, keys, round_index,
     T = β·T_unshadowed + mean(W·((1 − β)·Y − (1 − V)·Y)), a control variate whose coefficient β is its visible
     fraction this round: β = 1 samples only blocked light (exact for an open vertex), β = 0 only visible light
     (exact for a buried one), in between it tracks the optimal coefficient.
-    Flat polygons (`flat`: their cone planes and the transfer G they block) are exact: a ray counts as blocked
-    only for what they do not explain, 1 − V − g with g its hits on them, and G is subtracted; unbiased for any
-    polygon, and P's edges add no noise where P really is occluder geometry."""
+    Flat polygons (`flat`: their cone planes and the transfer G they block; None without any) are exact: a ray
+    counts as blocked only for what they do not explain, 1 − V − g with g its hits on them, and G is subtracted;
+    unbiased for any polygon, and P's edges add no noise where P really is occluder geometry."""
     replicates, order = settings.replicates, settings.order
-    groups, size = frames.shape[:2]
-    normals = frames[:, :, 2]
-    stream = keys[:, None] * STREAMS_PER_VERTEX + round_index * replicates + np.arange(replicates)
-    shifts = sampling.hash_uniform(settings.seed, stream.reshape(-1), 2).reshape(groups, replicates, 2)
-    points = sampling.fibonacci_lattice(per_replicate)
-    if size == 1:
-        cast = sampling.cosine_lattice_directions(points, shifts, frames[:, 0, None])
+    groups, size = normals.shape[:2]
+    lattice_frames, floor, points, shifts = lattice
+    per_replicate = len(points)
+    if floor is None:  # a group of one samples its own lobe
+        cast = sampling.cosine_lattice_directions(points, shifts, lattice_frames[:, None])
     else:
-        mean_normal = sampling.unit_or_zero(normals.sum(axis=1))
-        closest = np.maximum(np.einsum("gd,gkd->gk", mean_normal, normals).min(1), 0.0)
-        floor = -np.sqrt(1.0 - closest * closest)  # the lowest direction of the rows' hemispheres
-        cap_frames = np.stack([*sampling.orthonormal_basis(mean_normal), mean_normal], axis=1)
-        cast = sampling.cosine_lattice_directions(points, shifts, cap_frames[:, None], floor[:, None])
+        cast = sampling.cosine_lattice_directions(points, shifts, lattice_frames[:, None], floor[:, None])
     directions = cast  # (g, R, m, 3)
     cast = cast.reshape(groups, replicates * per_replicate, 3)  # a view: the rays of each group
     if settings.mode == "interreflected":
         occluded, triangle, distance = caster.occluded(origins, cast, hits=True)
     else:
         occluded = caster.occluded(origins, cast)
-    weights = None  # a group of one samples its own lobe: every weight is 1
-    if size > 1:
-        heights = np.einsum("gd,grmd->grm", mean_normal, directions) - floor[:, None, None]
-        cosines = np.maximum(np.einsum("gkd,grmd->gkrm", normals, directions), 0.0)
-        weights = cosines * ((1.0 - floor) ** 2)[:, None, None, None] / np.maximum(heights, 1e-300)[:, None]
     blocked = occluded.reshape(groups, 1, replicates, per_replicate)
-    cones, flat_blocked = flat
-    if cones is not None:
+    if flat is not None:
+        cones, flat_blocked = flat
         seen = np.broadcast_to(cast[:, None], (groups, size, *cast.shape[1:])).reshape(groups * size, -1, 3)
         flat_hits = polygons.hits(seen, cones.reshape(groups * size, *cones.shape[2:]))
         blocked = blocked - flat_hits.reshape(groups, size, replicates, per_replicate)
-    blocked_weights = blocked if weights is None else weights * blocked
-    all_rays, blocked_rays = _weighted_means(directions, weights, blocked_weights, order)
-    beta = 1.0 - blocked_weights.mean(axis=(2, 3))[..., None, None]  # (g, k, 1, 1)
-    estimate = beta * unshadowed[:, :, None] + (1.0 - beta) * all_rays - blocked_rays  # (g, k, R, n²)
-    estimate -= flat_blocked[:, :, None]
+    # Each row's weights W and W·(1 − V) per ray, made where _weighted_means multiplies them: (g, 2, k, R, m).
+    weighed = np.empty((groups, 2, size, replicates, per_replicate))
+    weights, blocked_weights = weighed[:, 0], weighed[:, 1]
+    if size == 1:  # every weight is 1
+        beta = 1.0 - blocked.mean(axis=(2, 3))[..., None, None]
+        weights[...] = 1.0 / per_replicate
+        np.multiply(blocked, 1.0 / per_replicate, out=blocked_weights)
+        weights = None
+    else:
+        heights = np.einsum("gd,grmd->grm", lattice_frames[:, 2], directions) - floor[:, None, None]
+        np.maximum(np.einsum("gkd,grmd->gkrm", normals, directions, out=weights), 0.0, out=weights)
+        weights *= ((1.0 - floor) ** 2)[:, None, None, None]
+        weights /= np.maximum(heights, 1e-300)[:, None]
+        np.multiply(weights, blocked, out=blocked_weights)
+        beta = 1.0 - blocked_weights.mean(axis=(2, 3))[..., None, None]  # (g, k, 1, 1)
     round_hits = (_round_hits(caster, origins, cast, occluded, triangle, distance, weights, per_replicate)
                   if settings.mode == "interreflected" else None)
-    return estimate.mean(2), estimate.var(2, ddof=1) / replicates, round_hits
+    if weights is not None:
+        weighed *= 1.0 / per_replicate  # the means' 1/m, after β and the hits read the weights themselves
+    all_rays, blocked_rays = _weighted_means(directions, weighed, order)
+    estimate = beta * unshadowed[:, :, None] + (1.0 - beta) * all_rays - blocked_rays  # (g, k, R, n²)
+    if flat is not None:
+        estimate -= flat_blocked[:, :, None]
+    # np.mean and np.var's arithmetic, the sum over replicates taken once
+    mean = estimate.sum(axis=2) / replicates
+    deviation = estimate - mean[:, :, None]
+    deviation *= deviation
+    return mean, deviation.sum(axis=2) / (replicates - 1) / replicates, round_hits
 
 
-def _weighted_means(directions, weights, blocked_weights, order):
-    """Per row and replicate: the means of W·Y and of W·(1 − V)·Y over its group's directions (g, R, m, 3), as one
-    small matrix product per group and replicate, a few at a time so memory stays bounded at high orders and ray
-    counts. Both (g, k, R, n²); `weights` None: all 1 (a group of one)."""
+def _weighted_means(directions, weighed, order):
+    """Per row and replicate: the means of W·Y and of W·(1 − V)·Y over its group's directions (g, R, m, 3), from
+    `weighed` (g, 2, k, R, m), W and W·(1 − V) already divided by m: one small matrix product per group and
+    replicate, a few groups at a time so memory stays bounded at high orders and ray counts. Both (g, k, R, n²)."""
     groups, replicates, per_replicate = directions.shape[:3]
-    size, coefficients = blocked_weights.shape[1], order * order
-    rows = np.empty((groups * replicates, 2 * size, per_replicate))
-    if weights is None:
-        rows[:, 0] = 1.0 / per_replicate
-        np.multiply(blocked_weights.reshape(-1, per_replicate), 1.0 / per_replicate, out=rows[:, 1])
-    else:
-        for half, part in enumerate((weights, blocked_weights)):
-            rows.reshape(groups, replicates, 2, size, per_replicate)[:, :, half] = np.moveaxis(part, 2, 1)
-        rows *= 1.0 / per_replicate
-    flat_directions = directions.reshape(groups * replicates, per_replicate, 3)
-    means = np.empty((groups * replicates, 2 * size, coefficients))
-    step = max(1, REPLICATE_VALUES_AT_ONCE // (per_replicate * coefficients))
-    for first in range(0, groups * replicates, step):
+    size, coefficients = weighed.shape[2], order * order
+    # (g, R, 2k, m): each group and replicate's (2k, m) matrix, its rows R·m apart, as BLAS reads it in place.
+    rows = weighed.reshape(groups, 2 * size, replicates, per_replicate).transpose(0, 2, 1, 3)
+    means = np.empty((groups, replicates, 2 * size, coefficients))
+    step = max(1, REPLICATE_VALUES_AT_ONCE // (replicates * per_replicate * coefficients))
+    for first in range(0, groups, step):
         part = slice(first, first + step)
-        basis = sh.evaluate_components(order, flat_directions[part].reshape(-1, 3))
-        np.matmul(rows[part], basis.T.reshape(-1, per_replicate, coefficients), out=means[part])
+        basis = sh.evaluate_components(order, directions[part].reshape(-1, 3))
+        np.matmul(rows[part], basis.T.reshape(-1, replicates, per_replicate, coefficients), out=means[part])
     means = np.moveaxis(means.reshape(groups, replicates, 2, size, coefficients), 1, 3)  # (g, 2, k, R, n²)
     return means[:, 0], means[:, 1]
 

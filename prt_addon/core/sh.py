@@ -59,43 +59,52 @@ def _check_order(order):
 
 
 def _evaluate_into(values, order, directions):
-    """Fill values (N, order²) with Y_k of directions (N, 3)."""
+    """Fill values (N, order²) with Y_k of directions (N, 3). Every term is a pass over N values written into an
+    array made once per call: a fresh array per term cost as much as the arithmetic."""
     x, y, z = directions[:, 0], directions[:, 1], directions[:, 2]
-    power_re, power_im = np.ones_like(z), np.zeros_like(z)  # (x + iy)^m
+    count = len(z)
+    power_re, power_im = np.ones(count), np.zeros(count)  # (x + iy)^m
+    next_re, next_im, scratch, cos_part, sin_part = np.empty((5, count))
+    legendre = np.empty((3, count))  # the recurrence's three terms, reused in turn
     sectoral = 1.0 / math.sqrt(4.0 * math.pi)  # K_mm P_m^m / sin^m θ, a constant
     for m in range(order):
         if m > 0:
-            power_re, power_im = x * power_re - y * power_im, x * power_im + y * power_re
+            np.multiply(x, power_re, out=next_re)
+            next_re -= np.multiply(y, power_im, out=scratch)
+            np.multiply(x, power_im, out=next_im)
+            next_im += np.multiply(y, power_re, out=scratch)
+            power_re, next_re, power_im, next_im = next_re, power_re, next_im, power_im
             sectoral *= -math.sqrt((2 * m + 1) / (2 * m))
-        _fill_degree(values, order, m, z, sectoral, power_re, power_im)
+            np.multiply(power_re, math.sqrt(2.0), out=cos_part)
+            np.multiply(power_im, math.sqrt(2.0), out=sin_part)
+        for l, term in _legendre_over_sine_power(order, m, z, sectoral, legendre, scratch):
+            if m == 0:
+                values[..., index(l, 0)] = term
+            else:
+                np.multiply(term, cos_part, out=values[..., index(l, m)])
+                np.multiply(term, sin_part, out=values[..., index(l, -m)])
 
 
-def _fill_degree(values, order, m, z, sectoral, power_re, power_im):
-    """Write the coefficients (l, ±m) for l = m..order-1 into `values`."""
-    if m == 0:
-        for l, legendre in _legendre_over_sine_power(order, 0, z, sectoral):
-            values[..., index(l, 0)] = legendre
-        return
-    cos_part, sin_part = math.sqrt(2.0) * power_re, math.sqrt(2.0) * power_im
-    for l, legendre in _legendre_over_sine_power(order, m, z, sectoral):
-        np.multiply(legendre, cos_part, out=values[..., index(l, m)])
-        np.multiply(legendre, sin_part, out=values[..., index(l, -m)])
-
-
-def _legendre_over_sine_power(order, m, z, sectoral):
-    """Yield (l, K_lm P_l^m(z) / sin^m θ) for l = m..order-1.
+def _legendre_over_sine_power(order, m, z, sectoral, buffers, scratch):
+    """Yield (l, K_lm P_l^m(z) / sin^m θ) for l = m..order-1: the constant `sectoral` for l = m, then arrays in
+    `buffers` (3, N), each valid until the next but one is yielded; `scratch` (N,) is overwritten.
 
     Dividing out sin^m θ leaves a polynomial in z, so the standard normalised three-term
     recurrence in l applies unchanged; magnitudes stay below 1e13 up to order 64.
     """
-    older = np.full_like(z, sectoral)
+    older = sectoral
     yield m, older
     if m + 1 >= order:
         return
-    old = math.sqrt(2 * m + 3) * z * sectoral
+    old, new, spare = buffers
+    np.multiply(z, math.sqrt(2 * m + 3), out=old)
+    old *= sectoral
     yield m + 1, old
     for l in range(m + 2, order):
         a = math.sqrt((4 * l * l - 1) / (l * l - m * m))
         b = math.sqrt(((l - 1) ** 2 - m * m) / (4 * (l - 1) ** 2 - 1))
-        older, old = old, a * (z * old - b * older)
-        yield l, old
+        np.multiply(z, old, out=new)
+        new -= b * older if l == m + 2 else np.multiply(older, b, out=scratch)  # l = m + 2: older is a number
+        new *= a
+        yield l, new
+        older, old, new = old, new, (spare if l == m + 2 else older)
