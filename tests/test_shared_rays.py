@@ -6,7 +6,7 @@ import bpy  # noqa: F401  (mathutils comes with bpy)
 import numpy as np
 import pytest
 
-from quadrature import polygon_transfer
+from quadrature import polygon_transfer, reference_sh
 
 from prt_addon.core import bake, corners, interreflect, job
 
@@ -133,3 +133,53 @@ def test_a_chunk_whose_points_all_need_no_rays_bakes_exactly_without_any():
                                                   ROOF - [0, 0, 3.0]), order=3, samples=64)
     assert result.rays.sum() == 0 and result.skipped.all()
     np.testing.assert_allclose(result.transfer, np.tile(bake.unshadowed_transfer(3, NORMALS), (4, 1)), atol=1e-7)
+
+
+
+def v_groove(rise, vertices_along=41, wing=3.0, spacing=0.1):
+    """A flat-shaded V groove along y: its wings rise `rise` from the crease on either side. Returns the occluders,
+    the crease's vertices and the wings' normals."""
+    y = spacing * (np.arange(vertices_along) - vertices_along // 2)
+    crease = np.column_stack([np.zeros_like(y), y, np.zeros_like(y)])
+    left, right = (crease + [side * wing, 0.0, wing * np.tan(rise)] for side in (-1.0, 1.0))
+    vertices = np.vstack([crease, left, right])
+    strips = [([j, outer, outer + 1], [j, outer + 1, j + 1]) for j in range(vertices_along - 1)
+              for outer in (vertices_along + j, 2 * vertices_along + j)]
+    triangles = np.array([triangle for strip in strips for triangle in strip])
+    left_wing = triangles.max(1) < 2 * vertices_along
+    triangles[left_wing] = triangles[left_wing][:, ::-1]  # both wings face up
+    occluders = bake.Occluders(vertices, triangles, vertices.copy())
+    return occluders, crease, np.array([[np.sin(rise), 0.0, np.cos(rise)], [-np.sin(rise), 0.0, np.cos(rise)]])
+
+
+def wedge_transfer(order, normal, rise, side, nodes=64):
+    """What the other wing of an endless groove blocks for a point just above its crease: every direction towards
+    `side` (+1: +x) below that wing's plane and above the point's own, a lune about the crease from elevation −rise
+    to +rise. Gauss-Legendre in the lune's angle and latitude, with scipy's SH."""
+    t, wt = np.polynomial.legendre.leggauss(nodes)
+    angle, latitude = np.meshgrid(rise * t, 0.5 * np.pi * t, indexing="ij")
+    weights = np.outer(rise * wt, 0.5 * np.pi * wt) * np.cos(latitude)
+    directions = np.stack([side * np.cos(latitude) * np.cos(angle), np.sin(latitude),
+                           np.cos(latitude) * np.sin(angle)], axis=-1).reshape(-1, 3)
+    return (weights.ravel() * (directions @ normal)) @ reference_sh(order, directions) / np.pi
+
+
+def test_a_v_grooves_crease_points_see_the_other_wing_as_quadrature_does():
+    """The crease of a flat-shaded V groove: each of its vertices' two points (one per wing) shares one ray group,
+    and all that blocks their light is the other wing, whose faces meet at the vertex: for rays starting just
+    above the crease, a lune of directions about it. Every point's transfer matches quadrature over that lune
+    within its estimated error."""
+    rise, order = np.radians(30.0), 3
+    occluders, crease, normals = v_groove(rise)
+    inner = crease[5:-5]  # away from the groove's ends
+    count = len(inner)
+    receiver = bake.Receiver("groove", np.repeat(inner, 2, axis=0), np.tile(normals, (count, 1)), 11, None,
+                             np.repeat(np.arange(count) * 2, 2))
+    result = bake_points(receiver, occluders, order=order, samples=64)
+    expected = np.tile([bake.unshadowed_transfer(order, normal[None])[0] - wedge_transfer(order, normal, rise, side)
+                        for normal, side in zip(normals, (1.0, -1.0))], (count, 1))
+    assert np.abs(expected - bake.unshadowed_transfer(order, receiver.normals)).max() > 0.05  # teeth: a real shadow
+    z = np.linalg.norm(result.transfer - expected, axis=1) / np.maximum(result.std_error, 1e-12)
+    assert 0.6 <= np.sqrt(np.mean(z ** 2)) <= 1.5, z
+    spread = result.std_error.mean() / np.sqrt(len(z))
+    assert np.linalg.norm((result.transfer - expected).mean(0)) <= 4 * spread + 1e-4
