@@ -32,7 +32,7 @@ TARGET_MARGIN = 1.15
 # spread each chunk's fixed numpy work over 32 k rays at 256 samples.
 CHUNK_VERTICES = 128
 RAYS_PER_BATCH = 1 << 17
-# Basis values (float64) that _replicate_means evaluates at once: 4M values = 32 MB, whatever the order and rays.
+# Basis values (float64) that _weighted_means evaluates at once: 4M values = 32 MB, whatever the order and rays.
 REPLICATE_VALUES_AT_ONCE = 1 << 22
 # Ray origins sit this fraction of the scene's diagonal above the surface: scale-free, and far above
 # float32 rounding because the geometry is recentred on the scene's bounding box before the BVH is built.
