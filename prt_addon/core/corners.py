@@ -36,15 +36,18 @@ class ShadingPoints:
 def shading_points(corner_vertices: np.ndarray, corner_normals: np.ndarray, vertex_count: int) -> ShadingPoints:
     """Groups corners (C,) with normals (C, 3) into points; a vertex without corners keeps a zero normal."""
     rounded = np.round(np.asarray(corner_normals, dtype=np.float64), NORMAL_DECIMALS) + 0.0  # -0.0 → 0.0
-    keys = np.column_stack([corner_vertices.astype(np.float64), rounded])
-    groups, first_corner, group_of_corner = np.unique(keys, axis=0, return_index=True, return_inverse=True)
+    keys = np.ascontiguousarray(np.column_stack([corner_vertices.astype(np.float64), rounded]))
+    # Equal rows are equal bytes: one key of 32 bytes per corner sorts 3-5× faster than rows (np.unique's axis=0),
+    # and the order of the groups does not matter (points are numbered below).
+    _, first_corner, group_of_corner = np.unique(keys.view(np.dtype((np.void, keys.itemsize * 4))).ravel(),
+                                                 return_index=True, return_inverse=True)
     group_of_corner = group_of_corner.ravel()
-    group_vertex = groups[:, 0].astype(np.int64)
+    group_vertex = np.asarray(corner_vertices, dtype=np.int64)[first_corner]
     # Each vertex's group holding its lowest corner becomes the vertex's own point; the other groups follow.
     order = np.lexsort((first_corner, group_vertex))
-    primary = np.zeros(len(groups), dtype=bool)
+    primary = np.zeros(len(first_corner), dtype=bool)
     primary[order[np.r_[True, group_vertex[order][1:] != group_vertex[order][:-1]]]] = True
-    point_of_group = np.empty(len(groups), dtype=np.int64)
+    point_of_group = np.empty(len(first_corner), dtype=np.int64)
     point_of_group[primary] = group_vertex[primary]
     extra = np.flatnonzero(~primary)
     extra = extra[np.argsort(first_corner[extra], kind="stable")]
