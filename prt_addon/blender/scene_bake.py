@@ -9,7 +9,7 @@ import sys
 import bpy
 import numpy as np
 
-from ..core import bake, interpolation, job, settings as spec, subsurface, workers
+from ..core import bake, corners, interpolation, job, settings as spec, subsurface, workers
 from ..core.errors import InputError
 from ..core.progress import JobSequence, WrappingJob
 from . import fingerprint, geometry, materials, storage, texel_bake
@@ -22,7 +22,7 @@ INTERPOLATION_KEYS = ("est_interp_rms_rel_error", "est_interp_max_rel_error", "i
 def _vertex_count(surface) -> int:
     """The surface's vertices (a split vertex's points share its position): probes follow the surface, not how
     finely its normals split it."""
-    return len(np.unique(surface.vertex_positions, axis=0))
+    return len(corners.unique_rows(surface.vertex_positions)[0])
 
 
 def worker_launch():

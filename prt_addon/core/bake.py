@@ -18,7 +18,7 @@ import zlib
 
 import numpy as np
 
-from . import interreflect, lobes, polygons, sampling, settings as spec, sh
+from . import corners, interreflect, lobes, polygons, sampling, settings as spec, sh
 
 MAX_REPLICATES = 16
 # Random streams per vertex (rounds × replicates): MAX_ROUNDS rounds of at most 40 lattice sizes each.
@@ -254,11 +254,10 @@ class RayCaster:
         own (F,) bool (the face has a corner at the position). Nearest points are read only for faces not own (zero
         for the own faces, which nothing measures from): most faces found are a vertex's own, and each value read
         from a search costs a Python object."""
-        # Rows at one position are one place (+ 0.0: -0.0 and 0.0 are one place); the order of places does not
-        # matter, since each row's faces are listed in its place's search order.
-        as_bytes = np.ascontiguousarray(surface + 0.0).view(np.dtype((np.void, 3 * surface.itemsize))).ravel()
-        places, place_of_row = np.unique(as_bytes, return_inverse=True)
-        places = places.view(surface.dtype).reshape(-1, 3)
+        # Rows at one position are one place; the order of places does not matter, since each row's faces are
+        # listed in its place's search order.
+        first, place_of_row = corners.unique_rows(surface)
+        places = surface[first] + 0.0
         near = list(map(self.tree.find_nearest_range, map(tuple, places.tolist()),
                         repeat(TOUCH_REACH * self.offset)))
         counts = np.fromiter(map(len, near), dtype=np.int64, count=len(near))

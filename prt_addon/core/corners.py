@@ -33,15 +33,21 @@ class ShadingPoints:
         return len(np.unique(self.point_vertices[self.vertex_count:]))
 
 
+def unique_rows(rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(first (u,), inverse (n,)): where each distinct row of `rows` (n, d) first occurs, and each row's distinct
+    row. Rows are compared as bytes (-0.0 made 0.0 first), 3-5× faster than np.unique's axis=0; the distinct rows
+    come in no meaningful order."""
+    keys = np.ascontiguousarray(rows + 0.0)
+    _, first, inverse = np.unique(keys.view(np.dtype((np.void, keys.itemsize * keys.shape[1]))).ravel(),
+                                  return_index=True, return_inverse=True)
+    return first, inverse.ravel()
+
+
 def shading_points(corner_vertices: np.ndarray, corner_normals: np.ndarray, vertex_count: int) -> ShadingPoints:
     """Groups corners (C,) with normals (C, 3) into points; a vertex without corners keeps a zero normal."""
     rounded = np.round(np.asarray(corner_normals, dtype=np.float64), NORMAL_DECIMALS) + 0.0  # -0.0 → 0.0
-    keys = np.ascontiguousarray(np.column_stack([corner_vertices.astype(np.float64), rounded]))
-    # Equal rows are equal bytes: one key of 32 bytes per corner sorts 3-5× faster than rows (np.unique's axis=0),
-    # and the order of the groups does not matter (points are numbered below).
-    _, first_corner, group_of_corner = np.unique(keys.view(np.dtype((np.void, keys.itemsize * 4))).ravel(),
-                                                 return_index=True, return_inverse=True)
-    group_of_corner = group_of_corner.ravel()
+    # The order of the groups does not matter: points are numbered below.
+    first_corner, group_of_corner = unique_rows(np.column_stack([corner_vertices.astype(np.float64), rounded]))
     group_vertex = np.asarray(corner_vertices, dtype=np.int64)[first_corner]
     # Each vertex's group holding its lowest corner becomes the vertex's own point; the other groups follow.
     order = np.lexsort((first_corner, group_vertex))
