@@ -10,7 +10,7 @@ from benchmarks import assets
 from conftest import run_cli
 from prt_addon.blender import geometry, mesh_arrays, storage
 from prt_addon.blender.scene_bake import SceneBake
-from prt_addon.core import shading
+from prt_addon.core import corners, shading
 from prt_addon.core.bake import BakeSettings
 from test_bake_blender import box, grid
 
@@ -47,6 +47,24 @@ def test_smooth_meshes_are_baked_with_their_vertex_normals_exactly(empty_scene):
     assert surface.corner_points is None and surface.split_vertices == 0
     expected = geometry.directions_to_world(np.array(sphere.matrix_world), mesh_arrays.mesh_vertex_normals(sphere.data))
     np.testing.assert_array_equal(surface.receiver.normals, expected)
+
+
+def test_shading_points_skip_the_corner_normals_only_where_blender_shades_by_vertex(empty_scene):
+    """A smooth sphere (normals domain POINT) takes the short path, which gives what grouping its corner normals
+    gives; one flat quad makes the domain CORNER, and its four vertices split."""
+    bpy.ops.mesh.primitive_uv_sphere_add(segments=12, ring_count=6)
+    mesh = bpy.context.object.data
+    mesh.shade_smooth()
+    assert mesh.normals_domain == "POINT"
+    grouped = corners.shading_points(mesh_arrays.mesh_corner_vertices(mesh), mesh_arrays.mesh_corner_normals(mesh),
+                                     len(mesh.vertices))
+    short = geometry.mesh_shading_points(mesh)
+    np.testing.assert_array_equal(short.corner_points, grouped.corner_points)
+    np.testing.assert_array_equal(short.point_vertices, grouped.point_vertices)
+    np.testing.assert_allclose(short.point_normals, grouped.point_normals, atol=1e-6)
+    quad = next(face for face in mesh.polygons if face.loop_total == 4)
+    quad.use_smooth = False
+    assert mesh.normals_domain == "CORNER" and geometry.mesh_shading_points(mesh).split_vertices == 4
 
 
 def test_each_point_of_a_flat_cube_is_baked_with_its_faces_normal(empty_scene):

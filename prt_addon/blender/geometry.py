@@ -15,7 +15,10 @@ from .mesh_arrays import (mesh_corner_normals, mesh_corner_vertices, mesh_positi
 
 # -- shading points and transforms ---------------------------------------------------------------------------
 def mesh_shading_points(mesh) -> corners.ShadingPoints:
-    return corners.shading_points(mesh_corner_vertices(mesh), mesh_corner_normals(mesh), len(mesh.vertices))
+    corner_vertices = mesh_corner_vertices(mesh)
+    if mesh.normals_domain == "POINT":  # smooth, no sharp edges or custom normals: every corner has its vertex's
+        return corners.unsplit_points(corner_vertices, mesh_vertex_normals(mesh))  # normal (a third of the gathering)
+    return corners.shading_points(corner_vertices, mesh_corner_normals(mesh), len(mesh.vertices))
 
 
 def points_to_world(matrix, points: np.ndarray) -> np.ndarray:

@@ -64,6 +64,15 @@ def shading_points(corner_vertices: np.ndarray, corner_normals: np.ndarray, vert
     return ShadingPoints(point_of_group[group_of_corner], point_vertices, point_normals, vertex_count)
 
 
+def unsplit_points(corner_vertices: np.ndarray, vertex_normals: np.ndarray) -> ShadingPoints:
+    """shading_points for a mesh whose corners all have their vertex's normal (no vertex splits): the vertices,
+    each with its vertex normal (zero without corners), without reading or grouping the corner normals."""
+    count = len(vertex_normals)
+    has_corners = np.bincount(corner_vertices, minlength=count)[:count] > 0
+    return ShadingPoints(np.asarray(corner_vertices, dtype=np.int64), np.arange(count),
+                         np.where(has_corners[:, None], vertex_normals, 0.0), count)
+
+
 # The points of a split vertex share their rays when their normals all lie within 60° of the group's mean normal n̄:
 # one ray origin then lies above all their tangent planes, and the cap that covers all their hemispheres (core.bake)
 # keeps each point's weights below (1 − s)² ≤ 3.5. Sharper creases (a cube's corners, a thin sheet's rim) part a

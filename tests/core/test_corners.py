@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from prt_addon.core.corners import shading_points
+from prt_addon.core.corners import shading_points, unsplit_points
 
 # A unit cube, flat-shaded: 8 vertices, 6 quads, 24 corners; each vertex touches 3 faces with 3 normals.
 CUBE_FACES = {(0, 0, -1): (0, 2, 3, 1), (0, 0, 1): (4, 5, 7, 6), (0, -1, 0): (0, 1, 5, 4),
@@ -43,3 +43,16 @@ def test_a_split_vertex_keeps_the_normal_of_its_first_corner_as_its_own_point():
     np.testing.assert_array_equal(points.point_vertices, [0, 1, 2, 0])
     np.testing.assert_array_equal(points.point_normals, [[0, 0, 1], [0, 1, 0], [0, 0, 0], [1, 0, 0]])
     assert points.split_vertices == 1
+
+
+def test_unsplit_points_are_what_grouping_gives_when_every_corner_has_its_vertexs_normal():
+    """Vertex 4 has no corner: a zero normal, as shading_points gives it."""
+    rng = np.random.default_rng(3)
+    vertex_normals = rng.standard_normal((5, 3))
+    vertex_normals /= np.linalg.norm(vertex_normals, axis=1, keepdims=True)
+    corner_vertices = np.array([0, 1, 2, 2, 3, 1, 0, 3, 2])
+    grouped = shading_points(corner_vertices, vertex_normals[corner_vertices], 5)
+    unsplit = unsplit_points(corner_vertices, vertex_normals)
+    for field in ("corner_points", "point_vertices", "point_normals"):
+        np.testing.assert_array_equal(getattr(unsplit, field), getattr(grouped, field))
+    assert unsplit.vertex_count == 5 and unsplit.extra_points == 0 and not unsplit.point_normals[4].any()
