@@ -359,7 +359,7 @@ def shadowed_chunk(caster: RayCaster, positions, normals, inward, keys, settings
                 part = slice(first, first + batch)
                 groups = members[part]  # (g, k) rows
                 lattice = lattice_frames[part], None if floor is None else floor[part], points, shifts[part]
-                flat = None if cones is None else (cones[groups], flat_blocked[groups])
+                flat = None if cones is None else (cones[groups[:, 0]], flat_blocked[groups])
                 mean, variance, round_hits = _blocked_round(caster, origins[groups[:, 0]], normals[groups], lattice,
                                                             unshadowed[groups], flat, settings)
                 rows = groups.ravel()
@@ -490,9 +490,10 @@ def _blocked_round(caster, origins, normals, lattice, unshadowed, flat, settings
     T = β·T_unshadowed + mean(W·((1 − β)·Y − (1 − V)·Y)), a control variate whose coefficient β is its visible
     fraction this round: β = 1 samples only blocked light (exact for an open vertex), β = 0 only visible light
     (exact for a buried one), in between it tracks the optimal coefficient.
-    Flat polygons (`flat`: their cone planes and the transfer G they block; None without any) are exact: a ray
-    counts as blocked only for what they do not explain, 1 − V − g with g its hits on them, and G is subtracted;
-    unbiased for any polygon, and P's edges add no noise where P really is occluder geometry."""
+    Flat polygons (`flat`: each group's cone planes (g, P, m, 3), the same for its rows as they share their origin,
+    and the transfer G they block for each row; None without any) are exact: a ray counts as blocked only for what
+    they do not explain, 1 − V − g with g its hits on them, and G is subtracted; unbiased for any polygon, and P's
+    edges add no noise where P really is occluder geometry."""
     replicates, order = settings.replicates, settings.order
     groups, size = normals.shape[:2]
     lattice_frames, floor, points, shifts = lattice
@@ -509,10 +510,8 @@ def _blocked_round(caster, origins, normals, lattice, unshadowed, flat, settings
         occluded = caster.occluded(origins, cast)
     blocked = occluded.reshape(groups, 1, replicates, per_replicate)
     if flat is not None:
-        cones, flat_blocked = flat
-        seen = np.broadcast_to(cast[:, None], (groups, size, *cast.shape[1:])).reshape(groups * size, -1, 3)
-        flat_hits = polygons.hits(seen, cones.reshape(groups * size, *cones.shape[2:]))
-        blocked = blocked - flat_hits.reshape(groups, size, replicates, per_replicate)
+        cones, flat_blocked = flat  # a group's cones: its rows share their origin
+        blocked = blocked - polygons.hits(cast, cones).reshape(groups, 1, replicates, per_replicate)
     # Each row's W/m and W·(1 − V)/m per ray (the means' 1/m), made where _weighted_means multiplies them: (g, 2, k,
     # R, m).
     weighed = np.empty((groups, 2, size, replicates, per_replicate))

@@ -122,12 +122,13 @@ def _turn(a, b, c):
 
 def hits(directions, planes):
     """directions (c, k, 3), cone planes (c, P, m, 3) from cones_and_blocked_transfer → (c, k) int8: how many
-    polygons each ray hits."""
+    polygons each ray hits. Each polygon's sides are one batched matrix product with the directions (read as
+    (c, 3, k): contiguous rows for component-major directions, as the bake makes them)."""
     count = np.zeros(directions.shape[:2], dtype=np.int8)
+    across = directions.transpose(0, 2, 1)
     for polygon in range(planes.shape[1]):
-        inside = np.any(planes[:, polygon] != 0.0, axis=(1, 2))[:, None].repeat(directions.shape[1], axis=1)
-        for edge in range(planes.shape[2]):
-            inside &= np.einsum("ckj,cj->ck", directions, planes[:, polygon, edge]) >= 0.0
+        sides = np.matmul(planes[:, polygon], across)  # (c, m, k)
+        inside = (sides >= 0.0).all(axis=1) & np.any(planes[:, polygon] != 0.0, axis=(1, 2))[:, None]
         count += inside
     return count
 
