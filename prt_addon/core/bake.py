@@ -327,17 +327,20 @@ def shadowed_chunk(caster: RayCaster, positions, normals, inward, keys, settings
     lifted = normals + touched
     lifted /= np.maximum(np.linalg.norm(lifted, axis=1, keepdims=True), 1e-12)
     origins = positions + caster.offset * np.where(facing[:, None], lifted + steps, normals + inward)
-    if labels is not None:  # a point touching a surface at an angle needs its own lifted origin: it casts alone
-        labels = np.where(facing, -1 - np.arange(count), labels)
-    sets = ray_sets(labels, np.flatnonzero(has_surface & ~skipped))
+    baked = np.flatnonzero(has_surface & ~skipped)
+    if labels is not None:
+        labels = _alone_unless_lifting(labels.copy(), baked, normals, touched)
+    sets = ray_sets(labels, baked)
     lattices = []  # per set: each group's lattice frames (g, 3, 3) and the floor of its cap (g,), None: a hemisphere
     for members in sets:
         if members.shape[1] == 1:
             lattices.append((_frames(normals[members[:, 0]]), None))
             continue
-        cap_frames, floor, climbs = _caps(normals[members])
-        origins[members] = _shared_origins(origins[members], positions[members[:, 0]], normals[members],
-                                           cap_frames[:, 2], climbs, caster.offset)[:, None]
+        cap_frames, floor = _caps(normals[members])
+        lifts, direction, planes, climbs = _planes_to_clear(normals[members], touched[members])
+        origins[members] = _shared_origins(origins[members], positions[members[:, 0]], planes,
+                                           np.where(lifts[:, None], direction, cap_frames[:, 2]), climbs,
+                                           caster.offset)[:, None]
         lattices.append((cap_frames, floor))
     cones, flat_blocked = _flat_shadows(caster, origins, normals, order)
     rounds = []  # (rows, rays per row, transfer mean, transfer variance), combined below
@@ -458,23 +461,57 @@ def _frames(normals):
 
 def _caps(normals):
     """For ray groups of rows (normals (g, k, 3), k > 1): the frames (g, 3, 3) of the cap their shared lattice
-    covers, around the rows' mean normal n̄ (the third row); the cap's floor s (g,), the lowest direction of the
-    rows' hemispheres, so that the cap is n̄·ω ≥ s; and each row's n·n̄ (g, k)."""
+    covers, around the rows' mean normal n̄ (the third row); and the cap's floor s (g,), the lowest direction of the
+    rows' hemispheres, so that the cap is n̄·ω ≥ s."""
     mean_normal = sampling.unit_or_zero(normals.sum(axis=1))
-    climbs = np.einsum("gd,gkd->gk", mean_normal, normals)
-    closest = np.maximum(climbs.min(1), 0.0)
-    return _frames(mean_normal), -np.sqrt(1.0 - closest * closest), climbs
+    closest = np.maximum(np.einsum("gd,gkd->gk", mean_normal, normals).min(1), 0.0)
+    return _frames(mean_normal), -np.sqrt(1.0 - closest * closest)
 
 
-def _shared_origins(origins, positions, normals, mean_normal, climbs, offset):
+# A group whose points touch surfaces at an angle shares one origin when it can start in front of all of them and
+# of its points' own planes: each plane climbs at least this much along the direction the origin is raised in, so
+# the origin stays within a few offsets of the vertex (else those points cast alone from their own lifted origins).
+LIFT_CLIMB = 1.0 / 3.0
+
+
+def _planes_to_clear(normals, touched):
+    """For ray groups (g, k) at one vertex each, the planes through the vertex its one origin must be in front of:
+    every row's tangent plane (normals (g, k, 3)) and every surface a row touches at an angle (`touched` (g, k, 3),
+    zero where none). Returns (lifts (g,): some row touches a surface, and the origin can clear them all; the
+    direction to raise it along (g, 3): their mean where it lifts, else the mean of the rows' normals; the planes
+    (g, 2k, 3); their climbs along that direction (g, 2k), zero for no plane)."""
+    planes = np.concatenate([normals, touched], axis=1)
+    real = np.abs(planes).sum(-1) > 0
+    lifting = sampling.unit_or_zero(planes.sum(axis=1))
+    lifts = real[:, normals.shape[1]:].any(axis=1) & (
+        np.where(real, np.einsum("gd,gpd->gp", lifting, planes), 1.0).min(axis=1) >= LIFT_CLIMB)
+    direction = np.where(lifts[:, None], lifting, sampling.unit_or_zero(normals.sum(axis=1)))
+    return lifts, direction, planes, np.where(real, np.einsum("gd,gpd->gp", direction, planes), 0.0)
+
+
+def _alone_unless_lifting(labels, baked, normals, touched):
+    """`labels` with each row that touches a surface at an angle (a nonzero `touched` normal) made a group of its
+    own (it then starts its rays in front of both, lifted) unless its group's one origin can clear every plane
+    (_planes_to_clear); repeated, since a group that loses a row changes its direction."""
+    while True:
+        parting = [members[~_planes_to_clear(normals[members], touched[members])[0]]
+                   for members in ray_sets(labels, baked) if members.shape[1] > 1]
+        rows = np.concatenate([members.ravel() for members in parting] + [np.zeros(0, dtype=np.int64)])
+        rows = rows[(np.abs(touched[rows]).sum(-1) > 0) & (labels[rows] >= 0)]
+        if not len(rows):
+            return labels
+        labels[rows] = -1 - rows
+
+
+def _shared_origins(origins, positions, planes, direction, climbs, offset):
     """(g, 3) one ray origin for each group of rows (g, k) at one vertex (`positions` (g, 3)): the mean of the rows'
-    own origins (g, k, 3), raised along the mean normal (g, 3) until it is at least `offset` above every row's
-    tangent plane (normals (g, k, 3); `climbs` (g, k): n·n̄, > 0 as the rows' normals are within 90° of each other),
-    as each row's own origin is."""
+    own origins (g, k, 3), raised along `direction` (g, 3) until it is at least `offset` in front of every plane
+    through the vertex (_planes_to_clear's: `planes` (g, p, 3), `climbs` (g, p), zero for none), as each row's own
+    origin is in front of its own."""
     steps = (origins - positions[:, None]).mean(axis=1)
-    heights = np.einsum("gd,gkd->gk", steps, normals)
-    raise_by = np.maximum((offset - heights) / np.maximum(climbs, 1e-3), 0.0).max(axis=1)
-    return positions + steps + raise_by[:, None] * mean_normal
+    heights = np.einsum("gd,gpd->gp", steps, planes)
+    raise_by = np.where(climbs > 0.0, np.maximum((offset - heights) / np.maximum(climbs, 1e-3), 0.0), 0.0)
+    return positions + steps + raise_by.max(axis=1)[:, None] * direction
 
 
 def _blocked_round(caster, origins, normals, lattice, unshadowed, flat, settings):
