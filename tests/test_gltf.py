@@ -435,4 +435,5 @@ def test_prt_view_exports_serves_on_loopback_and_stops(demo_file):
         assert urllib.request.urlopen(f"{base}/node_modules/three/build/three.module.js", timeout=30).status == 200
     finally:
         process.send_signal(signal.SIGINT)
-        assert process.wait(timeout=60) == 0
+        _, errors = process.communicate(timeout=60)  # reading the pipes: a full one would block the exit
+        assert process.returncode == 0, errors

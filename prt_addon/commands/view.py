@@ -73,6 +73,9 @@ def start_server(viewer: Path, scene_path: str, port: int = 0) -> http.server.Th
     """Serves the viewer and the export on 127.0.0.1 from a daemon thread; stop it with stop_server."""
     handler = functools.partial(_Handler, directory=str(viewer), scene_path=scene_path)
     server = http.server.ThreadingHTTPServer(("127.0.0.1", port), handler)
+    # Stopping does not wait for requests still being answered (a browser may hold a connection open): their
+    # threads are daemons and end with the process.
+    server.block_on_close = False
     threading.Thread(target=server.serve_forever, name="prt viewer server", daemon=True).start()
     return server
 
