@@ -91,8 +91,11 @@ def cosine_lattice_directions(points, shifts, frames, floor=None):
         radius = np.sqrt(sin_squared, out=sin_squared)
     else:
         floor = np.asarray(floor, dtype=np.float64)[..., None]
-        height = floor + (1.0 - floor) * height
-        radius = np.sqrt(np.maximum(1.0 - height * height, 0.0))
+        height *= 1.0 - floor  # in place: these are per-ray arrays
+        height += floor
+        radius = np.multiply(height, height, out=sin_squared)
+        np.subtract(1.0, radius, out=radius)
+        np.sqrt(np.maximum(radius, 0.0, out=radius), out=radius)
     azimuth, turn = 2.0 * np.pi * points[:, 1], 2.0 * np.pi * shifts[..., 1:]
     cos_turn, sin_turn = np.cos(turn), np.sin(turn)
     tangent = cos_turn * frames[..., 0, :] + sin_turn * frames[..., 1, :]  # (..., 3)

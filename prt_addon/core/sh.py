@@ -42,13 +42,14 @@ def evaluate(order, directions):
     return values.reshape(directions.shape[:-1] + (order * order,))
 
 
-def evaluate_components(order, directions):
+def evaluate_components(order, directions, dtype=np.float64):
     """Y_k(d) as (order², N) for directions (N, 3): a contiguous row per coefficient, written without stride,
     so about 1.5× faster than evaluate() for the many directions of a bake round; its transpose equals
-    evaluate()'s (N, order²) exactly."""
+    evaluate()'s (N, order²) exactly. With dtype float32, the same float64 arithmetic is rounded as it is
+    stored."""
     _check_order(order)
     directions = np.asarray(directions, dtype=np.float64).reshape(-1, 3)
-    values = np.empty((order * order, len(directions)))
+    values = np.empty((order * order, len(directions)), dtype=dtype)
     _evaluate_into(values.T, order, directions)
     return values
 
