@@ -239,14 +239,14 @@ def test_an_abandoned_chunk_queue_stops_filling():
 
 
 def test_batching_a_round_never_changes_a_result(monkeypatch):
-    """Rounds are cast RAYS_PER_BATCH rays at a time; each vertex keeps its own random streams, so any batch size
-    gives the same bits, target-error rounds included."""
+    """Rounds weigh WEIGHT_BYTES_PER_BATCH of weights at a time; each vertex keeps its own random streams, so any
+    batch size gives the same bits, target-error rounds included."""
     rng = np.random.default_rng(6)
     positions = np.column_stack([rng.uniform(-1.5, 1.5, (200, 2)), np.zeros(200)])
     receiver = bake.Receiver("b", positions, np.tile([0.0, 0.0, 1.0], (200, 1)), 22)
     settings = dict(order=4, samples=64, target_error=0.03, max_samples=1024)
     (whole,), _ = run([receiver], disc(1.0, 1.0), **settings)
-    monkeypatch.setattr(bake, "RAYS_PER_BATCH", 300)  # a few vertices per batch, uneven last batches
+    monkeypatch.setattr(bake, "WEIGHT_BYTES_PER_BATCH", 2400)  # a few vertices per batch, uneven last batches
     yields = []
     work = bake.bake_chunk(bake.RayCaster(disc(1.0, 1.0)), receiver, np.arange(bake.CHUNK_VERTICES),
                            bake.BakeSettings(**settings))

@@ -31,7 +31,7 @@ TARGET_MARGIN = 1.15
 # Fixed chunk size: any split of chunks over workers does exactly the same arithmetic per chunk. 128 vertices
 # spread each chunk's fixed numpy work over 32 k rays at 256 samples.
 CHUNK_VERTICES = 128
-RAYS_PER_BATCH = 1 << 17
+WEIGHT_BYTES_PER_BATCH = 1 << 20
 # Basis values (float64) that _weighted_means evaluates at once: 4M values = 32 MB, whatever the order and rays.
 REPLICATE_VALUES_AT_ONCE = 1 << 22
 # Ray origins sit this fraction of the scene's diagonal above the surface: scale-free, and far above
@@ -352,12 +352,13 @@ def shadowed_chunk(caster: RayCaster, positions, normals, inward, keys, settings
             points = sampling.fibonacci_lattice(per_replicate)
             stream = keys[members[:, 0], None] * STREAMS_PER_VERTEX + round_index * replicates + np.arange(replicates)
             shifts = sampling.hash_uniform(settings.seed, stream.ravel(), 2).reshape(len(members), replicates, 2)
-            # A round weighs at most RAYS_PER_BATCH rays × rows at a time (a row of a shared group weighs all of its
-            # group's rays): bounded memory, arrays near cache size, and progress (and Esc) between batches. Every
-            # group keeps its own random streams, so batching never changes a result. The flat-shaded cow's CPU
-            # besides the rays, relative to 2^16: 2^15 1.07, 2^17 0.95, 2^18 1.04 at 256 samples; 2^17 0.88 at 1024
-            # samples (the smooth cow's: 1.00).
-            batch = max(1, RAYS_PER_BATCH // (group_rays * members.shape[1]))
+            # A round weighs at most WEIGHT_BYTES_PER_BATCH of weights (rays × rows) at a time (a row of a shared
+            # group weighs all of its group's rays): bounded memory, arrays near cache size, and progress (and Esc)
+            # between batches. Every group keeps its own random streams, so batching never changes a result. The
+            # flat-shaded cow's CPU besides the rays in float64, relative to 2^19 bytes: 2^18 1.07, 2^20 0.95, 2^21
+            # 1.04 at 256 samples; 2^20 0.88 at 1024 samples (the smooth cow's: 1.00).
+            size = members.shape[1]
+            batch = max(1, WEIGHT_BYTES_PER_BATCH // (group_rays * size * np.dtype(weight_dtype(size)).itemsize))
             for first in range(0, len(members), batch):
                 part = slice(first, first + batch)
                 groups = members[part]  # (g, k) rows
@@ -518,6 +519,14 @@ def _shared_origins(origins, positions, planes, direction, climbs, offset):
     return positions + steps + raise_by.max(axis=1)[:, None] * direction
 
 
+def weight_dtype(size):
+    """The dtype of a ray group's weights and of the SH values they meet, for groups of `size` rows. A shared group's
+    k rows each weigh every ray: in float32 that work moves half the bytes and its matrix products run twice as
+    fast. A replicate's sums over its m rays then round by √m·2^-24 of their size typically, m·2^-24 at worst (6e-5
+    at m = 1024), far below the Monte Carlo error they carry. A group of one keeps float64: its weights are 1."""
+    return np.float64 if size == 1 else np.float32
+
+
 def _blocked_round(caster, origins, normals, lattice, unshadowed, flat, settings):
     """One round for g ray groups of k rows (origins (g, 3), the rest (g, k, ...)): each group casts R replicates of
     its own shifted lattice from its origin. `lattice`: each group's frames (g, 3, 3) and cap floor (g,) or None
@@ -554,8 +563,8 @@ def _blocked_round(caster, origins, normals, lattice, unshadowed, flat, settings
         cones, flat_blocked = flat  # a group's cones: its rows share their origin
         blocked = blocked - polygons.hits(cast, cones).reshape(groups, 1, replicates, per_replicate)
     # Each row's W/m and W·(1 − V)/m per ray (the means' 1/m), made where _weighted_means multiplies them: (g, 2, k,
-    # R, m).
-    weighed = np.empty((groups, 2, size, replicates, per_replicate))
+    # R, m), in weight_dtype.
+    weighed = np.empty((groups, 2, size, replicates, per_replicate), dtype=weight_dtype(size))
     weights, blocked_weights = weighed[:, 0], weighed[:, 1]
     if size == 1:  # every weight is 1
         beta = 1.0 - blocked.mean(axis=(2, 3))[..., None, None]
@@ -571,10 +580,11 @@ def _blocked_round(caster, origins, normals, lattice, unshadowed, flat, settings
         np.divide((((1.0 - floor) ** 2) / per_replicate)[:, None, None], np.maximum(per_ray, 1e-300, out=per_ray),
                   out=per_ray)
         # Scaling the 3 coordinates rather than the k rows' weights; a float mask multiplies faster than a bool one.
-        np.matmul(normals, coordinates * per_ray, out=weights.reshape(groups, size, -1))
+        scaled = np.multiply(coordinates, per_ray, out=np.empty(coordinates.shape, dtype=weighed.dtype))
+        np.matmul(normals.astype(weighed.dtype), scaled, out=weights.reshape(groups, size, -1))
         np.maximum(weights, 0.0, out=weights)
-        np.multiply(weights, blocked.astype(np.float64), out=blocked_weights)
-        beta = 1.0 - blocked_weights.sum(axis=(2, 3))[..., None, None] / replicates  # (g, k, 1, 1)
+        np.multiply(weights, blocked.astype(weighed.dtype), out=blocked_weights)
+        beta = 1.0 - blocked_weights.sum(axis=(2, 3), dtype=np.float64)[..., None, None] / replicates  # (g, k, 1, 1)
     round_hits = (_round_hits(caster, origins, cast, occluded, triangle, distance, weights, per_replicate)
                   if settings.mode == "interreflected" else None)
     all_rays, blocked_rays = _weighted_means(directions, weighed, order)
@@ -596,11 +606,11 @@ def _weighted_means(directions, weighed, order):
     size, coefficients = weighed.shape[2], order * order
     # (g, R, 2k, m): each group and replicate's (2k, m) matrix, its rows R·m apart, as BLAS reads it in place.
     rows = weighed.reshape(groups, 2 * size, replicates, per_replicate).transpose(0, 2, 1, 3)
-    means = np.empty((groups, replicates, 2 * size, coefficients))
+    means = np.empty((groups, replicates, 2 * size, coefficients), dtype=weighed.dtype)
     step = max(1, REPLICATE_VALUES_AT_ONCE // (replicates * per_replicate * coefficients))
     for first in range(0, groups, step):
         part = slice(first, first + step)
-        basis = sh.evaluate_components(order, directions[part].reshape(-1, 3))
+        basis = sh.evaluate_components(order, directions[part].reshape(-1, 3), weighed.dtype)
         np.matmul(rows[part], basis.T.reshape(-1, replicates, per_replicate, coefficients), out=means[part])
     means = np.moveaxis(means.reshape(groups, replicates, 2, size, coefficients), 1, 3)  # (g, 2, k, R, n²)
     return means[:, 0], means[:, 1]
