@@ -520,10 +520,12 @@ def _shared_origins(origins, positions, planes, direction, climbs, offset):
 
 
 def weight_dtype(size):
-    """The dtype of a ray group's weights and of the SH values they meet, for groups of `size` rows. A shared group's
-    k rows each weigh every ray: in float32 that work moves half the bytes and its matrix products run twice as
-    fast. A replicate's sums over its m rays then round by √m·2^-24 of their size typically, m·2^-24 at worst (6e-5
-    at m = 1024), far below the Monte Carlo error they carry. A group of one keeps float64: its weights are 1."""
+    """The dtype of a ray group's directions, weights and SH values, for groups of `size` rows. A shared group's k
+    rows each weigh every ray: in float32 that work moves half the bytes and its matrix products run twice as fast.
+    The directions lose nothing (the ray caster casts float32), and a replicate's sums over its m rays round by
+    √m·2^-24 of their size typically, m·2^-24 at worst (6e-5 at m = 1024), far below the Monte Carlo error they
+    carry. A group of one has no k-fold work (its weights are 1) and keeps float64, so smooth meshes bake bit for
+    bit as before."""
     return np.float64 if size == 1 else np.float32
 
 
@@ -547,11 +549,12 @@ def _blocked_round(caster, origins, normals, lattice, unshadowed, flat, settings
     replicates, order = settings.replicates, settings.order
     groups, size = normals.shape[:2]
     lattice_frames, floor, points, shifts = lattice
-    per_replicate = len(points)
+    per_replicate, dtype = len(points), weight_dtype(size)
     if floor is None:  # a group of one samples its own lobe
-        cast = sampling.cosine_lattice_directions(points, shifts, lattice_frames[:, None])
+        cast = sampling.cosine_lattice_directions(points, shifts, lattice_frames[:, None], dtype=dtype)
     else:
-        cast = sampling.cosine_lattice_directions(points, shifts, lattice_frames[:, None], floor[:, None])
+        floor = floor.astype(dtype)
+        cast = sampling.cosine_lattice_directions(points, shifts, lattice_frames[:, None], floor[:, None], dtype)
     directions = cast  # (g, R, m, 3)
     cast = cast.reshape(groups, replicates * per_replicate, 3)  # a view: the rays of each group
     if settings.mode == "interreflected":
@@ -563,8 +566,8 @@ def _blocked_round(caster, origins, normals, lattice, unshadowed, flat, settings
         cones, flat_blocked = flat  # a group's cones: its rows share their origin
         blocked = blocked - polygons.hits(cast, cones).reshape(groups, 1, replicates, per_replicate)
     # Each row's W/m and W·(1 − V)/m per ray (the means' 1/m), made where _weighted_means multiplies them: (g, 2, k,
-    # R, m), in weight_dtype.
-    weighed = np.empty((groups, 2, size, replicates, per_replicate), dtype=weight_dtype(size))
+    # R, m).
+    weighed = np.empty((groups, 2, size, replicates, per_replicate), dtype=dtype)
     weights, blocked_weights = weighed[:, 0], weighed[:, 1]
     if size == 1:  # every weight is 1
         beta = 1.0 - blocked.mean(axis=(2, 3))[..., None, None]
@@ -575,16 +578,15 @@ def _blocked_round(caster, origins, normals, lattice, unshadowed, flat, settings
         # Each group's (3, R·m) coordinates, a view of the component-major directions: products with the normals
         # are BLAS matrix products, 30× faster than einsum over the last axis of the (g, R, m, 3) view.
         coordinates = np.moveaxis(directions, -1, 0).reshape(3, groups, -1).transpose(1, 0, 2)
-        per_ray = np.matmul(lattice_frames[:, 2:], coordinates)  # n̄·ω (g, 1, R·m)
+        per_ray = np.matmul(lattice_frames[:, 2:].astype(dtype), coordinates)  # n̄·ω (g, 1, R·m)
         per_ray -= floor[:, None, None]
-        np.divide((((1.0 - floor) ** 2) / per_replicate)[:, None, None], np.maximum(per_ray, 1e-300, out=per_ray),
-                  out=per_ray)
+        np.divide((((1.0 - floor) ** 2) / per_replicate)[:, None, None],
+                  np.maximum(per_ray, np.finfo(dtype).tiny, out=per_ray), out=per_ray)
         # Scaling the 3 coordinates rather than the k rows' weights; a float mask multiplies faster than a bool one.
-        scaled = np.multiply(coordinates, per_ray, out=np.empty(coordinates.shape, dtype=weighed.dtype))
-        np.matmul(normals.astype(weighed.dtype), scaled, out=weights.reshape(groups, size, -1))
+        np.matmul(normals.astype(dtype), coordinates * per_ray, out=weights.reshape(groups, size, -1))
         np.maximum(weights, 0.0, out=weights)
-        np.multiply(weights, blocked.astype(weighed.dtype), out=blocked_weights)
-        beta = 1.0 - blocked_weights.sum(axis=(2, 3), dtype=np.float64)[..., None, None] / replicates  # (g, k, 1, 1)
+        np.multiply(weights, blocked.astype(dtype), out=blocked_weights)
+        beta = 1.0 - blocked_weights.sum(axis=(2, 3))[..., None, None] / replicates  # (g, k, 1, 1)
     round_hits = (_round_hits(caster, origins, cast, occluded, triangle, distance, weights, per_replicate)
                   if settings.mode == "interreflected" else None)
     all_rays, blocked_rays = _weighted_means(directions, weighed, order)

@@ -6,6 +6,8 @@ replicate is an unbiased estimate, and the spread of the R replicates is an hone
 replicate keeps the lattice's faster-than-Monte-Carlo convergence.
 """
 
+import functools
+
 import numpy as np
 
 
@@ -51,18 +53,25 @@ def hash_uniform(seed, keys, count):
     return uniforms
 
 
+@functools.lru_cache(maxsize=64)
 def fibonacci_lattice(count):
-    """(count, 2) points (i/n, frac(i·g)) in [0, 1)², g the golden ratio conjugate."""
+    """(count, 2) points (i/n, frac(i·g)) in [0, 1)², g the golden ratio conjugate; read-only, made once per count
+    (a bake asks for it in every round)."""
     index = np.arange(count)
-    return np.stack([index / count, np.mod(index * _GOLDEN, 1.0)], axis=-1)
+    points = np.stack([index / count, np.mod(index * _GOLDEN, 1.0)], axis=-1)
+    points.flags.writeable = False
+    return points
 
 
 def cranley_patterson(points, shifts):
     """Every shift (..., d) applied to all points (n, d) modulo 1 → (..., n, d).
 
-    Works one coordinate at a time so numpy's inner loops run along the n points, not along pairs."""
-    points, shifts = np.asarray(points, dtype=np.float64), np.asarray(shifts, dtype=np.float64)
-    shifted = np.empty(shifts.shape[:-1] + points.shape)
+    Works one coordinate at a time so numpy's inner loops run along the n points, not along pairs. float32 inputs
+    give float32 points; anything else float64."""
+    points, shifts = np.asarray(points), np.asarray(shifts)
+    dtype = np.result_type(points.dtype, shifts.dtype, np.float32)
+    points, shifts = points.astype(dtype, copy=False), shifts.astype(dtype, copy=False)
+    shifted = np.empty(shifts.shape[:-1] + points.shape, dtype=dtype)
     for axis in range(points.shape[-1]):
         coordinate = shifted[..., axis]
         np.add(points[:, axis], shifts[..., None, axis], out=coordinate)
@@ -71,7 +80,7 @@ def cranley_patterson(points, shifts):
     return shifted
 
 
-def cosine_lattice_directions(points, shifts, frames, floor=None):
+def cosine_lattice_directions(points, shifts, frames, floor=None, dtype=np.float64):
     """Unit directions (..., n, 3): the lattice `points` (n, 2) under every Cranley-Patterson shift (..., 2),
     mapped to the cosine-weighted hemisphere of each frame (..., 3, 3) whose rows are tangent, bitangent, normal.
 
@@ -83,14 +92,15 @@ def cosine_lattice_directions(points, shifts, frames, floor=None):
     equal-cosine-weight rings; the second is the azimuth. Shifting the azimuth turns the tangent frame, so cos and
     sin are taken once per lattice point and once per shift rather than once per ray. The result is a view of a
     component-major array: each coordinate of all the rays is contiguous, as the ray caster and SH evaluation
-    read them."""
-    points, shifts, frames = (np.asarray(a, dtype=np.float64) for a in (points, shifts, frames))
+    read them. All arithmetic is in `dtype`: float32 directions are what the ray caster casts anyway (mathutils
+    stores float32)."""
+    points, shifts, frames = (np.asarray(a, dtype=dtype) for a in (points, shifts, frames))
     sin_squared = cranley_patterson(points[:, :1], shifts[..., :1])[..., 0]  # (..., n)
     height = np.sqrt(1.0 - sin_squared)
     if floor is None:
         radius = np.sqrt(sin_squared, out=sin_squared)
     else:
-        floor = np.asarray(floor, dtype=np.float64)[..., None]
+        floor = np.asarray(floor, dtype=dtype)[..., None]
         height *= 1.0 - floor  # in place: these are per-ray arrays
         height += floor
         radius = np.multiply(height, height, out=sin_squared)
@@ -101,7 +111,7 @@ def cosine_lattice_directions(points, shifts, frames, floor=None):
     tangent = cos_turn * frames[..., 0, :] + sin_turn * frames[..., 1, :]  # (..., 3)
     bitangent = cos_turn * frames[..., 1, :] - sin_turn * frames[..., 0, :]
     across, along = radius * np.cos(azimuth), radius * np.sin(azimuth)
-    directions = np.empty((3,) + radius.shape)
+    directions = np.empty((3,) + radius.shape, dtype=dtype)
     for axis, component in enumerate(directions):
         np.multiply(across, tangent[..., axis, None], out=component)
         component += along * bitangent[..., axis, None]

@@ -45,10 +45,10 @@ def evaluate(order, directions):
 def evaluate_components(order, directions, dtype=np.float64):
     """Y_k(d) as (order², N) for directions (N, 3): a contiguous row per coefficient, written without stride,
     so about 1.5× faster than evaluate() for the many directions of a bake round; its transpose equals
-    evaluate()'s (N, order²) exactly. With dtype float32, the same float64 arithmetic is rounded as it is
-    stored."""
+    evaluate()'s (N, order²) exactly. With dtype float32 the arithmetic is float32 too: within 1e-6 of float64
+    at order 4 (see tests)."""
     _check_order(order)
-    directions = np.asarray(directions, dtype=np.float64).reshape(-1, 3)
+    directions = np.asarray(directions, dtype=dtype).reshape(-1, 3)
     values = np.empty((order * order, len(directions)), dtype=dtype)
     _evaluate_into(values.T, order, directions)
     return values
@@ -61,12 +61,12 @@ def _check_order(order):
 
 def _evaluate_into(values, order, directions):
     """Fill values (N, order²) with Y_k of directions (N, 3). Every term is a pass over N values written into an
-    array made once per call: a fresh array per term cost as much as the arithmetic."""
+    array made once per call: a fresh array per term cost as much as the arithmetic. Computes in values' dtype."""
     x, y, z = directions[:, 0], directions[:, 1], directions[:, 2]
-    count = len(z)
-    power_re, power_im = np.ones(count), np.zeros(count)  # (x + iy)^m
-    next_re, next_im, scratch, cos_part, sin_part = np.empty((5, count))
-    legendre = np.empty((3, count))  # the recurrence's three terms, reused in turn
+    count, dtype = len(z), values.dtype
+    power_re, power_im = np.ones(count, dtype=dtype), np.zeros(count, dtype=dtype)  # (x + iy)^m
+    next_re, next_im, scratch, cos_part, sin_part = np.empty((5, count), dtype=dtype)
+    legendre = np.empty((3, count), dtype=dtype)  # the recurrence's three terms, reused in turn
     sectoral = 1.0 / math.sqrt(4.0 * math.pi)  # K_mm P_m^m / sin^m θ, a constant
     for m in range(order):
         if m > 0:

@@ -105,6 +105,21 @@ def test_cosine_lattice_directions_are_the_shifted_lattice_under_the_polar_map_i
     assert np.moveaxis(directions, -1, 0).flags.c_contiguous
 
 
+def test_cosine_lattice_directions_in_float32_are_the_float64_ones_rounded():
+    """A shared ray group's directions are float32 (what the ray caster casts), with or without a cap floor."""
+    normals = random_unit_vectors(6, 8)
+    shifts = np.random.default_rng(8).random((6, 3, 2))
+    frames = np.stack([*sampling.orthonormal_basis(normals), normals], axis=1)[:, None]
+    points = sampling.fibonacci_lattice(34)
+    for floor in (None, np.linspace(-0.9, 0.0, 6)[:, None]):
+        exact = sampling.cosine_lattice_directions(points, shifts, frames, floor)
+        single = sampling.cosine_lattice_directions(points, shifts, frames, floor, np.float32)
+        assert single.dtype == np.float32 and np.moveaxis(single, -1, 0).flags.c_contiguous
+        np.testing.assert_allclose(single, exact, rtol=0, atol=2e-6)
+    edge = sampling.cranley_patterson(np.array([[0.5]], np.float32), np.array([0.5 - 2 ** -26], np.float32))
+    assert edge.dtype == np.float32 and edge[0, 0] == 0.0  # a float32 sum that rounds up to 1 still wraps
+
+
 def test_cosine_lattice_directions_have_the_cosine_density():
     shifts = np.random.default_rng(3).random((20000, 2))
     directions = sampling.cosine_lattice_directions(np.zeros((1, 2)), shifts, np.eye(3))[:, 0]
