@@ -347,11 +347,16 @@ def shadowed_chunk(caster: RayCaster, positions, normals, inward, keys, settings
     hits = [] if settings.mode == "interreflected" else None  # (chunk row, triangle, barycentric, weight)
     plan = [(settings.points_per_replicate, members, lattice) for members, lattice in zip(sets, lattices)]
     for round_index in range(MAX_ROUNDS):
-        for per_replicate, members, (lattice_frames, floor) in plan:
+        if not plan:  # every row exact without rays, or every row at its target
+            break
+        # Every group's lattice shifts for the round from one hash (each value depends on its key alone)
+        heads = np.concatenate([members[:, 0] for _, members, _ in plan])
+        stream = keys[heads, None] * STREAMS_PER_VERTEX + round_index * replicates + np.arange(replicates)
+        round_shifts = np.split(sampling.hash_uniform(settings.seed, stream.ravel(), 2).reshape(-1, replicates, 2),
+                                np.cumsum([len(members) for _, members, _ in plan])[:-1])
+        for (per_replicate, members, (lattice_frames, floor)), shifts in zip(plan, round_shifts):
             group_rays = replicates * per_replicate
             points = sampling.fibonacci_lattice(per_replicate)
-            stream = keys[members[:, 0], None] * STREAMS_PER_VERTEX + round_index * replicates + np.arange(replicates)
-            shifts = sampling.hash_uniform(settings.seed, stream.ravel(), 2).reshape(len(members), replicates, 2)
             # A round weighs at most WEIGHT_BYTES_PER_BATCH of weights (rays × rows) at a time (a row of a shared
             # group weighs all of its group's rays): bounded memory, arrays near cache size, and progress (and Esc)
             # between batches. Every group keeps its own random streams, so batching never changes a result. The
@@ -379,8 +384,6 @@ def shadowed_chunk(caster: RayCaster, positions, normals, inward, keys, settings
         plan = [(size, members[chosen], (frames[chosen], None if floor is None else floor[chosen]))
                 for members, (frames, floor) in zip(sets, lattices)
                 for size, chosen in _next_rounds(error[members].max(1), used[members[:, 0]], settings)]
-        if not plan:
-            break
     transfer, error = _combine(rounds, used, count, order)
     transfer[used == 0] = unshadowed[used == 0]  # exact: provably unoccluded, or no surface (zero)
     transfer[contact] = 0.0  # exact: every direction is blocked by the surface it rests on
