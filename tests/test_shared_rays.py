@@ -136,6 +136,29 @@ def test_a_chunk_whose_points_all_need_no_rays_bakes_exactly_without_any():
 
 
 
+def test_chunks_take_whole_groups_and_twice_as_many_shared_ones():
+    """Single rows chunk CHUNK_VERTICES at a time, shared groups SHARED_CHUNK_FACTOR times as many; every row is in
+    exactly one chunk, and a group's rows in one chunk."""
+    single, shared = 300, 700
+    labels = np.r_[np.arange(single), single + np.repeat(np.arange(shared), 3)]
+    receiver = bake.Receiver("mixed", np.zeros((len(labels), 3)), np.tile([0.0, 0.0, 1.0], (len(labels), 1)), 5,
+                             None, labels)
+    chunks = bake.chunk_rows([receiver])
+    groups_per_chunk = [len(np.unique(labels[rows])) for _, rows in chunks]
+    per_chunk = bake.CHUNK_VERTICES
+    # 300 single rows: chunks of 128, 128, then 44 rows sharing a chunk with shared groups worth 84 more singles
+    left = per_chunk - single % per_chunk
+    first_shared = bake.SHARED_CHUNK_FACTOR * left
+    whole = per_chunk * bake.SHARED_CHUNK_FACTOR
+    expected = [per_chunk, per_chunk, single % per_chunk + first_shared]
+    expected += [whole] * ((shared - first_shared) // whole) + [(shared - first_shared) % whole]
+    assert groups_per_chunk == expected
+    rows = np.concatenate([rows for _, rows in chunks])
+    assert np.array_equal(np.sort(rows), np.arange(len(labels)))
+    assert all(len(np.intersect1d(labels[a], labels[b])) == 0
+               for (_, a), (_, b) in zip(chunks, chunks[1:]))  # no group spans two chunks
+
+
 def v_groove(rise, vertices_along=41, wing=3.0, spacing=0.1):
     """A flat-shaded V groove along y: its wings rise `rise` from the crease on either side. Returns the occluders,
     the crease's vertices and the wings' normals."""

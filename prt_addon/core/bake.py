@@ -31,6 +31,11 @@ TARGET_MARGIN = 1.15
 # Fixed chunk size: any split of chunks over workers does exactly the same arithmetic per chunk. 128 vertices
 # spread each chunk's fixed numpy work over 32 k rays at 256 samples.
 CHUNK_VERTICES = 128
+# A chunk of shared ray groups takes this many times the groups: it runs a round per group size (about 3.4 on the
+# flat-shaded cow, against 1 for vertices), each with the same fixed numpy work, and its rows are several per group.
+# The flat cow's bake at 2: 0.95-1.00× (the medians of 24 pairs in one process, three runs on a noisy machine); at
+# 256 groups for every chunk, the smooth cow's bake did not change (0.99×).
+SHARED_CHUNK_FACTOR = 2
 WEIGHT_BYTES_PER_BATCH = 1 << 20
 # Basis values (float64) that _weighted_means evaluates at once: 4M values = 32 MB, whatever the order and rays.
 REPLICATE_VALUES_AT_ONCE = 1 << 22
@@ -644,22 +649,25 @@ def vertex_keys(receiver: Receiver, rows: np.ndarray) -> np.ndarray:
 
 def chunk_rows(receivers) -> list[tuple[int, np.ndarray]]:
     """(receiver index, rows) for chunks of CHUNK_VERTICES ray groups (rows, without groups) over every receiver,
-    fixed by the receivers alone: a group's rows share a chunk, and a chunk's rounds cast about as many rays
-    whether its groups are single rows or the corner points of split vertices. Groups are taken in order of their
-    size, so a chunk holds groups of one or two sizes and runs a round for each (ray_sets) rather than one for each
-    of the many sizes a vertex's corners come in: the flat-shaded cow's 194 rounds of 18 groups on average became
-    138 of 25, and its chunks' CPU besides the rays 0.84-0.88× (results bit for bit the same)."""
+    SHARED_CHUNK_FACTOR times as many where the groups are shared, fixed by the receivers alone: a group's rows
+    share a chunk. Groups are taken in order of their size, so a chunk holds groups of one or two sizes and runs a
+    round for each (ray_sets) rather than one for each of the many sizes a vertex's corners come in: the
+    flat-shaded cow's 194 rounds of 18 groups on average became 138 of 25, and its chunks' CPU besides the rays
+    0.84-0.88× (results bit for bit the same)."""
     chunks = []
     for index, receiver in enumerate(receivers):
         count = len(receiver.positions)
         if receiver.ray_groups is None:
-            order, starts = np.arange(count), np.arange(count)
+            order, cuts = np.arange(count), np.arange(CHUNK_VERTICES, count, CHUNK_VERTICES)
         else:
             _, group, sizes = np.unique(receiver.ray_groups, return_inverse=True, return_counts=True)
             order = np.lexsort((receiver.ray_groups, sizes[group.ravel()]))
             labels = receiver.ray_groups[order]
             starts = np.flatnonzero(np.r_[True, labels[1:] != labels[:-1]])
-        chunks.extend((index, rows) for rows in np.split(order, starts[CHUNK_VERTICES::CHUNK_VERTICES]))
+            share = np.where(np.diff(np.r_[starts, count]) > 1, 1.0 / SHARED_CHUNK_FACTOR, 1.0)  # of a chunk's groups
+            chunk_of_group = (np.cumsum(share) - share) // CHUNK_VERTICES  # exact for a power-of-two factor
+            cuts = starts[np.flatnonzero(np.diff(chunk_of_group)) + 1]
+        chunks.extend((index, rows) for rows in np.split(order, cuts))
     return chunks
 
 
