@@ -23,7 +23,9 @@ from . import fingerprint, job_file
 from .errors import InputError
 from .workers import shard_chunks
 
-PART_FORMAT = "prt-part-4"  # also names how chunks are cut: 4 parts a split vertex's points about their mean normal
+# Also names how chunks are cut: 4 parts a split vertex's points about their mean normal, 5 gives chunks of shared
+# ray groups twice the groups (bake.SHARED_CHUNK_FACTOR).
+PART_FORMAT = "prt-part-5"
 PROBES = "probe_"  # the prefix of the probes' arrays
 
 
