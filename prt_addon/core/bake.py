@@ -37,7 +37,8 @@ CHUNK_VERTICES = 128
 # 256 groups for every chunk, the smooth cow's bake did not change (0.99×).
 SHARED_CHUNK_FACTOR = 2
 WEIGHT_BYTES_PER_BATCH = 1 << 20
-# Basis values (float64) that _weighted_means evaluates at once: 4M values = 32 MB, whatever the order and rays.
+# Basis values that _weighted_means evaluates at once: 4M values = 32 MB in float64 (16 MB for a shared group's
+# float32, weight_dtype), whatever the order and rays.
 REPLICATE_VALUES_AT_ONCE = 1 << 22
 # Ray origins sit this fraction of the scene's diagonal above the surface: scale-free, and far above
 # float32 rounding because the geometry is recentred on the scene's bounding box before the BVH is built.
