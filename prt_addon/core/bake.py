@@ -343,9 +343,8 @@ def shadowed_chunk(caster: RayCaster, positions, normals, inward, keys, settings
             lattices.append((_frames(normals[members[:, 0]]), None))
             continue
         cap_frames, floor = _caps(normals[members])
-        lifts, direction, planes, climbs = _planes_to_clear(normals[members], touched[members])
-        origins[members] = _shared_origins(origins[members], positions[members[:, 0]], planes,
-                                           np.where(lifts[:, None], direction, cap_frames[:, 2]), climbs,
+        _, direction, planes, climbs = _planes_to_clear(normals[members], touched[members])
+        origins[members] = _shared_origins(origins[members], positions[members[:, 0]], planes, direction, climbs,
                                            caster.offset)[:, None]
         lattices.append((cap_frames, floor))
     cones, flat_blocked = _flat_shadows(caster, origins, normals, order)
