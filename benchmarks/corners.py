@@ -69,9 +69,9 @@ def load(folder, package):
     return scene_bake.SceneBake, importlib.import_module(package + ".core.bake").BakeSettings
 bakers = {(folder, package): load(folder, package) for folder, package, _, _ in sides}
 times_s, results = [[] for _ in sides], [None] * len(sides)
-# A first bake of each side, untimed, warms the process (modules imported on first use, numpy's and Blender's
-# caches): whichever side went first would otherwise carry it.
-for turn in range(-1, bakes):
+# Where sides are compared, a first bake of each, untimed, warms the process (modules imported on first use, numpy's
+# and Blender's caches): whichever side went first would otherwise carry it. A lone side is baked for its estimate.
+for turn in range(-1 if len(sides) > 1 else 0, bakes):
     for index in (range(len(sides)) if turn % 2 == 0 else reversed(range(len(sides)))):
         folder, package, shading, samples = sides[index]
         SceneBake, BakeSettings = bakers[folder, package]
@@ -101,8 +101,8 @@ def side(shading, samples=256, folder=ROOT, package="prt_addon") -> list:
 
 
 def bake(asset, sides, bakes=1) -> list[dict]:
-    """`bakes` bakes of each side in one fresh process, taking turns after an untimed first bake of each: per side
-    its times (`times_s`) and the last bake's summary."""
+    """`bakes` bakes of each side in one fresh process, taking turns after an untimed first bake of each (none for a
+    lone side): per side its times (`times_s`) and the last bake's summary."""
     result = subprocess.run([sys.executable, "-c", BAKE_SCRIPT, asset, json.dumps(sides), str(bakes)],
                             capture_output=True, text=True, timeout=1800, check=True)
     return json.loads(result.stdout.strip().splitlines()[-1])
@@ -114,7 +114,7 @@ def paired_ratio(asset, first, second, repeats, bakes) -> tuple[float, float, li
     Other tenants of this shared machine slow bakes down by up to 80 % for seconds at a time. Two bakes taken in
     turn see the same machine, and the median pair drops the pairs one burst hit: the fastest bakes, which this
     benchmark judged by before, need a quiet moment for each side, and in a noisy hour gave 1.33-1.84 for one
-    checkout where pairs gave 1.42-1.48."""
+    checkout where pairs gave 1.42-1.55."""
     ones, twos = [], []
     for _ in range(repeats):
         one, two = bake(asset, [first, second], bakes)
