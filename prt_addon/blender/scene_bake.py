@@ -11,7 +11,7 @@ import numpy as np
 
 from ..core import bake, corners, interpolation, job, settings as spec, subsurface, workers
 from ..core.errors import InputError
-from ..core.progress import JobSequence, WrappingJob
+from ..core.progress import JobSequence, WrappingJob, old_objects_frozen
 from . import fingerprint, geometry, materials, storage, texel_bake
 from .occluders import occluders_from_depsgraph
 
@@ -88,6 +88,7 @@ class SceneBake(WrappingJob):
     """Gathers receivers and occluders, runs the bake (a TransferJob, and one per finer lattice of texel
     receivers: core.texel_refine), then stores everything at once (its outcome)."""
 
+    @old_objects_frozen()  # gathering makes many lists for Blender and numpy, as a job's steps do
     def __init__(self, context, settings: bake.BakeSettings, object_names=None, workers: int = 1,
                  storage_options=None, shard=None, farm: bool = False):
         """storage_options: texel_bake.TexelOptions fields that override every receiver's own (the command

@@ -7,6 +7,8 @@ a log line every 5 % of the work, as the original program refreshed its bar ever
 operator (a progress bar, the status bar, Esc cancels).
 """
 
+from contextlib import contextmanager
+import gc
 import time
 
 
@@ -20,6 +22,23 @@ def format_duration(seconds: float) -> str:
     if seconds >= 60:
         return f"{int(seconds // 60)}m{int(seconds % 60):02d}s"
     return f"{seconds:.1f}s"
+
+
+@contextmanager
+def old_objects_frozen():
+    """Within the block (or the function it decorates), Python's cyclic garbage collector leaves alone every object
+    made before it (gc.freeze). A job makes and drops many containers (ray casts' results, lists handed to Blender),
+    and they start collections; every full one traversed all the objects Blender's Python holds, none of which a
+    job's step turns into garbage: about 30 ms each, in most of the flat-shaded cow's bakes. Objects made in the
+    block are collected as usual. A caller that froze objects already keeps them frozen (blocks nest)."""
+    if gc.get_freeze_count():
+        yield
+        return
+    gc.freeze()
+    try:
+        yield
+    finally:
+        gc.unfreeze()
 
 
 class Progress:
@@ -74,6 +93,7 @@ class Job:
     def outcome(self):
         return None
 
+    @old_objects_frozen()
     def run(self, log=None, budget_s: float = 0.5, every: float = 0.05):
         """Steps to the end, with `log(line)` of the progress and time left every `every` of the work and at the
         end; returns the outcome."""

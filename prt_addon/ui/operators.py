@@ -7,7 +7,7 @@ from bpy_extras.io_utils import ExportHelper
 from ..blender import geometry, gltf, storage
 from ..core import checks
 from ..core.errors import InputError
-from ..core.progress import format_duration
+from ..core.progress import format_duration, old_objects_frozen
 from .checks import checked_bake
 
 
@@ -72,7 +72,8 @@ class ModalJob:
         if event.type != "TIMER":
             return {"PASS_THROUGH"}
         try:
-            done = self._job.step(0.08)
+            with old_objects_frozen():
+                done = self._job.step(0.08)
         except Exception as failure:
             self._end(context)
             self.report({"ERROR"}, f"{self.label} failed, {self.kept}: {failure}")

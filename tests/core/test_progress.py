@@ -1,6 +1,9 @@
 """Progress of jobs run one after another (core.progress.JobSequence), on a clock the test moves."""
 
-from prt_addon.core.progress import Job, JobSequence, Progress
+import gc
+import weakref
+
+from prt_addon.core.progress import Job, JobSequence, Progress, old_objects_frozen
 
 
 class Clock:
@@ -37,3 +40,46 @@ def test_a_sequence_and_each_of_its_jobs_are_timed_from_their_first_step_and_wei
     assert second.progress.elapsed == 2.0  # its own two steps, not the 15 s since it was made
     assert sequence.progress.elapsed == 5.0
     assert sequence.progress.fraction == 1.0
+
+
+class Node:
+    """Something that can sit in a reference cycle and be watched."""
+
+
+class Cycling(Job):
+    """Each step drops a reference cycle, collects, and notes what the collector saw."""
+
+    def __init__(self, steps):
+        self.left = steps
+        self.progress = Progress("cycling")
+        self.seen = []  # per step: (objects frozen, its cycle collected)
+
+    def step(self, budget_s):
+        node = Node()
+        node.me = node
+        watched = weakref.ref(node)
+        del node
+        gc.collect()
+        self.seen.append((gc.get_freeze_count(), watched() is None))
+        self.left -= 1
+        self.progress.fraction = 1.0 - self.left / 2
+        return self.left <= 0
+
+
+def test_a_run_leaves_older_objects_to_the_collector_and_still_collects_what_it_drops():
+    assert gc.get_freeze_count() == 0
+    older = len(gc.get_objects())
+    job = Cycling(2)
+    job.run()
+    assert [collected for _, collected in job.seen] == [True, True]
+    assert all(frozen >= older // 2 for frozen, _ in job.seen)  # Python and pytest's own objects, at least
+    assert gc.get_freeze_count() == 0  # all given back
+
+
+def test_frozen_blocks_nest_and_the_outermost_gives_the_objects_back():
+    with old_objects_frozen():
+        frozen = gc.get_freeze_count()
+        job = Cycling(1)
+        job.run()
+        assert job.seen == [(frozen, True)] and gc.get_freeze_count() == frozen
+    assert gc.get_freeze_count() == 0
