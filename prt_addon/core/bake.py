@@ -337,16 +337,9 @@ def shadowed_chunk(caster: RayCaster, positions, normals, inward, keys, settings
     if labels is not None:
         labels = _alone_unless_lifting(labels.copy(), baked, normals, touched)
     sets = ray_sets(labels, baked)
-    lattices = []  # per set: each group's lattice frames (g, 3, 3) and the floor of its cap (g,), None: a hemisphere
-    for members in sets:
-        if members.shape[1] == 1:
-            lattices.append((_frames(normals[members[:, 0]]), None))
-            continue
-        cap_frames, floor = _caps(normals[members])
-        _, direction, planes, climbs = _planes_to_clear(normals[members], touched[members])
-        origins[members] = _shared_origins(origins[members], positions[members[:, 0]], planes, direction, climbs,
-                                           caster.offset)[:, None]
-        lattices.append((cap_frames, floor))
+    # per set: each group's lattice frames (g, 3, 3) and the floor of its cap (g,), None: a hemisphere
+    caps = iter(_share_rays(sets, positions, normals, touched, origins, caster.offset))
+    lattices = [(_frames(normals[members[:, 0]]), None) if members.shape[1] == 1 else next(caps) for members in sets]
     cones, flat_blocked = _flat_shadows(caster, origins, normals, order)
     rounds = []  # (rows, rays per row, transfer mean, transfer variance), combined below
     hits = [] if settings.mode == "interreflected" else None  # (chunk row, triangle, barycentric, weight)
@@ -468,12 +461,45 @@ def _frames(normals):
     return np.stack([*sampling.orthonormal_basis(normals), normals], axis=1)
 
 
+def _share_rays(sets, positions, normals, touched, origins, offset) -> list:
+    """For each set of shared groups (k > 1) among `sets`, in order: its groups' caps (_caps); and every row of a
+    shared group gets the group's one ray origin in `origins` (_shared_origins). The groups of every size are worked
+    at once, each padded to the largest with zero normals, which count for nothing below: a chunk of the flat-shaded
+    cow holds groups of about 7 sizes, and each step's fixed cost was paid per size."""
+    shared = [members for members in sets if members.shape[1] > 1]
+    if not shared:
+        return []
+    rows, real, (group_normals, group_touched, own_origins) = _padded(shared, normals, touched, origins)
+    vertex = positions[rows[:, 0]]
+    frames, floor = _caps(group_normals)
+    _, direction, planes, climbs = _planes_to_clear(group_normals, group_touched)
+    own_origins[~real] = np.repeat(vertex, (~real).sum(axis=1), axis=0)  # a padding row's: the vertex, no step
+    counts = real.sum(axis=1)
+    origins[rows[real]] = np.repeat(_shared_origins(own_origins, counts, vertex, planes, direction, climbs, offset),
+                                    counts, axis=0)
+    cuts = np.cumsum([len(members) for members in shared])[:-1]
+    return list(zip(np.split(frames, cuts), np.split(floor, cuts)))
+
+
+def _padded(sets, *per_row):
+    """Groups of rows of several sizes (`sets`: (g, k) arrays, k > 1) as one: their rows (G, K), padded to the largest
+    size with -1; where they are real (G, K); and each array of `per_row` (rows, 3) at them (G, K, 3), zero at the
+    padding, which is then no plane and no normal."""
+    width = max(members.shape[1] for members in sets)
+    rows = np.concatenate([np.pad(members, ((0, 0), (0, width - members.shape[1])), constant_values=-1)
+                           for members in sets])
+    real = rows >= 0
+    rows_there = np.where(real, rows, rows[:, :1])
+    return rows, real, [np.where(real[..., None], values[rows_there], 0.0) for values in per_row]
+
+
 def _caps(normals):
-    """For ray groups of rows (normals (g, k, 3), k > 1): the frames (g, 3, 3) of the cap their shared lattice
-    covers, around the rows' mean normal n̄ (the third row); and the cap's floor s (g,), the lowest direction of the
-    rows' hemispheres, so that the cap is n̄·ω ≥ s."""
+    """For ray groups of rows (normals (g, k, 3), k > 1, zero rows are none): the frames (g, 3, 3) of the cap their
+    shared lattice covers, around the rows' mean normal n̄ (the third row); and the cap's floor s (g,), the lowest
+    direction of the rows' hemispheres, so that the cap is n̄·ω ≥ s."""
     mean_normal = sampling.unit_or_zero(normals.sum(axis=1))
-    closest = np.maximum(np.einsum("gd,gkd->gk", mean_normal, normals).min(1), 0.0)
+    heights = np.einsum("gd,gkd->gk", mean_normal, normals)
+    closest = np.maximum(np.where(np.abs(normals).sum(-1) > 0, heights, np.inf).min(1), 0.0)
     return _frames(mean_normal), -np.sqrt(1.0 - closest * closest)
 
 
@@ -506,22 +532,25 @@ def _alone_unless_lifting(labels, baked, normals, touched):
     touching = np.abs(touched).sum(-1) > 0
     checked = labels[baked[touching[baked]]]
     while len(checked):
-        groups = baked[np.isin(labels[baked], checked)]
-        parting = [members[~_planes_to_clear(normals[members], touched[members])[0]]
-                   for members in ray_sets(labels, groups) if members.shape[1] > 1]
-        rows = np.concatenate([members.ravel() for members in parting] + [np.zeros(0, dtype=np.int64)])
+        shared = [members for members in ray_sets(labels, baked[np.isin(labels[baked], checked)])
+                  if members.shape[1] > 1]
+        if not shared:
+            break
+        rows, real, group_vectors = _padded(shared, normals, touched)
+        parting = ~_planes_to_clear(*group_vectors)[0]
+        rows = rows[parting][real[parting]]
         rows = rows[touching[rows]]
         checked = labels[rows]
         labels[rows] = -1 - rows
     return labels
 
 
-def _shared_origins(origins, positions, planes, direction, climbs, offset):
+def _shared_origins(origins, counts, positions, planes, direction, climbs, offset):
     """(g, 3) one ray origin for each group of rows (g, k) at one vertex (`positions` (g, 3)): the mean of the rows'
-    own origins (g, k, 3), raised along `direction` (g, 3) until it is at least `offset` in front of every plane
-    through the vertex (_planes_to_clear's: `planes` (g, p, 3), `climbs` (g, p), zero for none), as each row's own
-    origin is in front of its own."""
-    steps = (origins - positions[:, None]).mean(axis=1)
+    own origins (g, k, 3), the first `counts` (g,) of each group's, the rest at the vertex, raised along `direction`
+    (g, 3) until it is at least `offset` in front of every plane through the vertex (_planes_to_clear's: `planes` (g,
+    p, 3), `climbs` (g, p), zero for none), as each row's own origin is in front of its own."""
+    steps = (origins - positions[:, None]).sum(axis=1) / counts[:, None]
     heights = np.einsum("gd,gpd->gp", steps, planes)
     raise_by = np.where(climbs > 0.0, np.maximum((offset - heights) / np.maximum(climbs, 1e-3), 0.0), 0.0)
     return positions + steps + raise_by.max(axis=1)[:, None] * direction
