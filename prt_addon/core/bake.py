@@ -485,9 +485,11 @@ def _padded(sets, *per_row):
     """Groups of rows of several sizes (`sets`: (g, k) arrays, k > 1) as one: their rows (G, K), padded to the largest
     size with -1; where they are real (G, K); and each array of `per_row` (rows, 3) at them (G, K, 3), zero at the
     padding, which is then no plane and no normal."""
-    width = max(members.shape[1] for members in sets)
-    rows = np.concatenate([np.pad(members, ((0, 0), (0, width - members.shape[1])), constant_values=-1)
-                           for members in sets])
+    rows = np.full((sum(map(len, sets)), max(members.shape[1] for members in sets)), -1)
+    first = 0
+    for members in sets:  # (np.pad costs 20 µs a call)
+        rows[first:first + len(members), :members.shape[1]] = members
+        first += len(members)
     real = rows >= 0
     rows_there = np.where(real, rows, rows[:, :1])
     return rows, real, [np.where(real[..., None], values[rows_there], 0.0) for values in per_row]
