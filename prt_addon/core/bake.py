@@ -574,10 +574,11 @@ def _blocked_round(caster, origins, normals, lattice, unshadowed, flat, settings
     (see _caps), the lattice points (m, 2) and each group's shifts (g, R, 2). Returns the mean and variance over
     replicates of each row's transfer estimate (g, k, n²), and the hits (interreflected mode).
 
-    A group of one samples its row's cosine lobe. A larger group samples the cosine lobe of its mean normal n̄,
-    lowered to cover every row's hemisphere (the cap n̄·ω ≥ s); each row weighs each direction by its own cosine
-    density over the cap's, W = (1 − s)²·(n·ω)₊ / (n̄·ω − s): unbiased, and close to 1 where the normals nearly agree,
-    so all rows of a vertex share one lattice at the cost of one row. A row estimates
+    A group of one samples its row's cosine lobe. A larger group samples the cap n̄·ω ≥ s about its mean normal n̄
+    that covers every row's hemisphere, with density ∝ (n̄·ω − s)^q (q = sampling.CAP_EXPONENT); each row weighs each
+    direction by its own cosine density over the cap's, W = 2(1 − s)^(q+1)·(n·ω)₊ / ((q + 1)(n̄·ω − s)^q): unbiased,
+    and near 1 where the normals nearly agree, so all rows of a vertex share one lattice at the cost of one row. A row
+    estimates
     T = β·T_unshadowed + mean(W·((1 − β)·Y − (1 − V)·Y)), a control variate whose coefficient β is its visible
     fraction this round: β = 1 samples only blocked light (exact for an open vertex), β = 0 only visible light
     (exact for a buried one), in between it tracks the optimal coefficient.
@@ -613,14 +614,13 @@ def _blocked_round(caster, origins, normals, lattice, unshadowed, flat, settings
         weights[...] = 1.0 / per_replicate
         np.multiply(blocked, 1.0 / per_replicate, out=blocked_weights)
         weights = None
-    else:  # W/m = (n·ω)₊ · (1 − s)² / ((n̄·ω − s)·m) = (n·(c·ω))₊ with c the ray's part, which is positive
+    else:  # W/m = (n·ω)₊ / (π p(ω) m) = (n·(c·ω))₊ with c = 1/(π p m), p the cap's density (sampling.cap_weights)
         # Each group's (3, R·m) coordinates, a view of the component-major directions: products with the normals
         # are BLAS matrix products, 30× faster than einsum over the last axis of the (g, R, m, 3) view.
         coordinates = np.moveaxis(directions, -1, 0).reshape(3, groups, -1).transpose(1, 0, 2)
         per_ray = np.matmul(lattice_frames[:, 2:].astype(dtype), coordinates)  # n̄·ω (g, 1, R·m)
         per_ray -= floor[:, None, None]
-        np.divide((((1.0 - floor) ** 2) / per_replicate)[:, None, None],
-                  np.maximum(per_ray, np.finfo(dtype).tiny, out=per_ray), out=per_ray)
+        sampling.cap_weights(per_ray, floor[:, None, None], 1.0 / per_replicate)
         # Scaling the 3 coordinates rather than the k rows' weights; a float mask multiplies faster than a bool one.
         np.matmul(normals.astype(dtype), coordinates * per_ray, out=weights.reshape(groups, size, -1))
         np.maximum(weights, 0.0, out=weights)

@@ -19,6 +19,13 @@ _MIX_1 = np.uint64(0xBF58476D1CE4E5B9)
 _MIX_2 = np.uint64(0x94D049BB133111EB)
 # Hash values produced per pass: small enough that the uint64 temporaries stay in cache.
 _HASH_CHUNK = 1 << 16
+# A cap shared by several normals (cosine_lattice_directions' floor) has density ∝ (z − s)^CAP_EXPONENT above its
+# floor s. Each normal weighs a ray by its own cosine density over the cap's, and what it sees blocked lies mostly
+# low, near the floor, where a lower exponent puts more rays: the flat-shaded cow's estimated error at 256 samples,
+# relative to the exponent 1 (the cosine lobe lowered to the floor): 0.5 0.992, 0.65 0.978, 0.7 0.976, 0.75 0.975,
+# 0.85 0.977; on a floor, homer 0.982 and the teapot 0.977 at 0.75. (The mean of W² alone, the noise where the
+# occlusion is even, is least near 1.4: it does not say where the occluders are.)
+CAP_EXPONENT = 0.75
 
 
 def _mix64(x):
@@ -84,9 +91,10 @@ def cosine_lattice_directions(points, shifts, frames, floor=None, dtype=np.float
     """Unit directions (..., n, 3): the lattice `points` (n, 2) under every Cranley-Patterson shift (..., 2),
     mapped to the cosine-weighted hemisphere of each frame (..., 3, 3) whose rows are tangent, bitangent, normal.
 
-    With `floor` s (..., ≤ 0), the directions fill the larger cap z ≥ s with density (z − s) / (π (1 − s)²),
-    z = normal·d: the hemisphere's cosine lobe shifted down by −s (a group of nearby normals shares such a cap,
-    see core.bake). Its height is s + (1 − s)·cos θ of the hemisphere's map, so the strata stay equal-weight rings.
+    With `floor` s (..., ≤ 0), the directions fill the larger cap z ≥ s, z = normal·d, with density
+    (q + 1)(z − s)^q / (2π (1 − s)^(q+1)), q = CAP_EXPONENT (a group of nearby normals shares such a cap, see
+    core.bake and cap_weights). Its height is s + (1 − s)·(cos² θ)^(1/(q+1)) of the hemisphere's map, so the strata
+    stay equal-weight rings.
 
     Polar map (uniform on the disc, lifted to the hemisphere): the first coordinate is sin²θ, so its strata are
     equal-cosine-weight rings; the second is the azimuth. Shifting the azimuth turns the tangent frame, so cos and
@@ -96,11 +104,12 @@ def cosine_lattice_directions(points, shifts, frames, floor=None, dtype=np.float
     stores float32)."""
     points, shifts, frames = (np.asarray(a, dtype=dtype) for a in (points, shifts, frames))
     sin_squared = cranley_patterson(points[:, :1], shifts[..., :1])[..., 0]  # (..., n)
-    height = np.sqrt(1.0 - sin_squared)
     if floor is None:
+        height = np.sqrt(1.0 - sin_squared)
         radius = np.sqrt(sin_squared, out=sin_squared)
     else:
         floor = np.asarray(floor, dtype=dtype)[..., None]
+        height = np.power(1.0 - sin_squared, dtype(1.0 / (CAP_EXPONENT + 1.0)))
         height *= 1.0 - floor  # in place: these are per-ray arrays
         height += floor
         radius = np.multiply(height, height, out=sin_squared)
@@ -117,6 +126,18 @@ def cosine_lattice_directions(points, shifts, frames, floor=None, dtype=np.float
         component += along * bitangent[..., axis, None]
         component += height * frames[..., 2, axis, None]
     return np.moveaxis(directions, 0, -1)
+
+
+def cap_weights(above_floor, floor, scale=1.0):
+    """1/(π p)·`scale` for directions in caps (cosine_lattice_directions with a floor) at heights z − s =
+    `above_floor` over their floor s (`floor`, broadcast against it), p the cap's density, written over
+    `above_floor`: a normal n weighs a ray of the cap by (n·d)₊ times this to estimate its own cosine lobe's
+    integrals, 2(1 − s)^(q+1) / ((q + 1)(z − s)^q). Bounded where it counts: (n·d)₊ vanishes at the floor."""
+    dtype = above_floor.dtype.type
+    np.maximum(above_floor, np.finfo(dtype).tiny, out=above_floor)
+    np.power(above_floor, dtype(CAP_EXPONENT), out=above_floor)
+    numerator = (2.0 * scale / (CAP_EXPONENT + 1.0)) * (1.0 - floor) ** dtype(CAP_EXPONENT + 1.0)
+    return np.divide(numerator.astype(dtype), above_floor, out=above_floor)
 
 
 def orthonormal_basis(normals):

@@ -128,6 +128,44 @@ def test_cosine_lattice_directions_have_the_cosine_density():
     assert stats.kstest(azimuth, "uniform", args=(-np.pi, 2 * np.pi)).pvalue > 0.01
 
 
+def test_a_caps_directions_have_its_density():
+    """Above a floor s the heights z fill the cap with density ∝ (z − s)^q: x = (z − s)/(1 − s) has the
+    distribution function x^(q+1), and the azimuth is uniform."""
+    floor, q = -0.6, sampling.CAP_EXPONENT
+    shifts = np.random.default_rng(4).random((20000, 2))
+    directions = sampling.cosine_lattice_directions(np.zeros((1, 2)), shifts, np.eye(3), floor)[:, 0]
+    np.testing.assert_allclose(np.linalg.norm(directions, axis=1), 1.0, rtol=0, atol=1e-14)
+    above = (directions[:, 2] - floor) / (1.0 - floor)
+    assert above.min() >= 0.0 and stats.kstest(above ** (q + 1.0), "uniform").pvalue > 0.01
+    assert stats.kstest(above ** 2, "uniform").pvalue < 1e-6  # teeth: not the lowered cosine lobe (q = 1)
+    azimuth = np.arctan2(directions[:, 1], directions[:, 0])
+    assert stats.kstest(azimuth, "uniform", args=(-np.pi, 2 * np.pi)).pvalue > 0.01
+
+
+def test_cap_weights_turn_a_caps_lattice_into_each_covered_normals_cosine_lobe():
+    """A cap about n̄ with floor s = −√(1 − c²) covers the hemisphere of every normal n with n̄·n ≥ c: the mean over
+    its lattice of (n·ω)₊·cap_weights·Y_k(ω) is n's clamped cosine transfer (Â_l/π)·Y_k(n), in float64 and float32."""
+    order, closest = 4, np.cos(np.radians(50.0))
+    floor = -np.sqrt(1.0 - closest ** 2)
+    axis = np.array([0.0, 0.0, 1.0])
+    tilts = np.radians([0.0, 20.0, 35.0, 50.0])
+    normals = np.stack([np.sin(tilts) * np.cos(tilts * 7), np.sin(tilts) * np.sin(tilts * 7), np.cos(tilts)], axis=1)
+    a_hat = np.array([np.pi, 2 * np.pi / 3, np.pi / 4, 0.0])
+    truth = reference_sh(order, normals) * np.repeat(a_hat / np.pi, 2 * np.arange(order) + 1)
+    points, shifts = sampling.fibonacci_lattice(4096), np.random.default_rng(6).random((4, 2))
+    for dtype, tolerance in ((np.float64, 3e-4), (np.float32, 5e-4)):
+        directions = sampling.cosine_lattice_directions(points, shifts, np.eye(3), floor, dtype).reshape(-1, 3)
+        weights = sampling.cap_weights(directions @ axis.astype(dtype) - dtype(floor), dtype(floor))
+        assert weights.dtype == dtype
+        cosines = np.maximum(directions.astype(np.float64) @ normals.T, 0.0) * weights[:, None]
+        estimate = (cosines.T @ reference_sh(order, directions.astype(np.float64))) / len(directions)
+        np.testing.assert_allclose(estimate, truth, rtol=0, atol=tolerance)
+    # teeth: the lowered cosine lobe's weights (q = 1) on these directions are off by 100 times the tolerance
+    directions = directions.astype(np.float64)
+    wrong = np.maximum(directions @ normals.T, 0.0) * ((1.0 - floor) ** 2 / (directions @ axis - floor))[:, None]
+    assert np.abs(wrong.T @ reference_sh(order, directions) / len(directions) - truth).max() > 0.02
+
+
 def test_cosine_lattice_estimates_clamped_cosine_transfer_faster_than_monte_carlo():
     """mean Y_k(ω_i) over cosine-distributed ω_i estimates (1/π)∫ max(n·ω, 0)·Y_k = (Â_l/π)·Y_k(n)."""
     order, vertices = 4, 100
