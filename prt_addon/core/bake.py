@@ -577,10 +577,10 @@ def _blocked_round(caster, origins, normals, lattice, unshadowed, flat, settings
     A group of one samples its row's cosine lobe. A larger group samples the cap n̄·ω ≥ s about its mean normal n̄
     that covers every row's hemisphere, with density ∝ (n̄·ω − s)^q (q = sampling.CAP_EXPONENT); each row weighs each
     direction by its own cosine density over the cap's, W = 2(1 − s)^(q+1)·(n·ω)₊ / ((q + 1)(n̄·ω − s)^q): unbiased,
-    and near 1 where the normals nearly agree, so all rows of a vertex share one lattice at the cost of one row. A row
-    estimates
-    T = β·T_unshadowed + mean(W·((1 − β)·Y − (1 − V)·Y)), a control variate whose coefficient β is its visible
-    fraction this round: β = 1 samples only blocked light (exact for an open vertex), β = 0 only visible light
+    and near 1 where the normals nearly agree (s = 0 and n = n̄: W = 2(n·ω)^(1−q)/(q + 1), whose mean square
+    4/((q + 1)(3 − q)) is 1.016 at q = 0.75), so all rows of a vertex share one lattice at the cost of one row. A row
+    estimates T = β·T_unshadowed + mean(W·((1 − β)·Y − (1 − V)·Y)), a control variate whose coefficient β is its
+    visible fraction this round: β = 1 samples only blocked light (exact for an open vertex), β = 0 only visible light
     (exact for a buried one), in between it tracks the optimal coefficient.
     Flat polygons (`flat`: each group's cone planes (g, P, m, 3), the same for its rows as they share their origin,
     and the transfer G they block for each row; None without any) are exact: a ray counts as blocked only for what
