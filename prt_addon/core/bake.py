@@ -469,13 +469,13 @@ def _share_rays(sets, positions, normals, touched, origins, offset) -> list:
     shared = [members for members in sets if members.shape[1] > 1]
     if not shared:
         return []
-    rows, real, (group_normals, group_touched, own_origins) = _padded(shared, normals, touched, origins)
+    # each row's step from its vertex to its own origin; a padding row's is zero
+    rows, real, (group_normals, group_touched, steps) = _padded(shared, normals, touched, origins - positions)
     vertex = positions[rows[:, 0]]
     frames, floor = _caps(group_normals)
     _, direction, planes, climbs = _planes_to_clear(group_normals, group_touched)
-    own_origins[~real] = np.repeat(vertex, (~real).sum(axis=1), axis=0)  # a padding row's: the vertex, no step
     counts = real.sum(axis=1)
-    origins[rows[real]] = np.repeat(_shared_origins(own_origins, counts, vertex, planes, direction, climbs, offset),
+    origins[rows[real]] = np.repeat(_shared_origins(steps, counts, vertex, planes, direction, climbs, offset),
                                     counts, axis=0)
     cuts = np.cumsum([len(members) for members in shared])[:-1]
     return list(zip(np.split(frames, cuts), np.split(floor, cuts)))
@@ -547,12 +547,13 @@ def _alone_unless_lifting(labels, baked, normals, touched):
     return labels
 
 
-def _shared_origins(origins, counts, positions, planes, direction, climbs, offset):
-    """(g, 3) one ray origin for each group of rows (g, k) at one vertex (`positions` (g, 3)): the mean of the rows'
-    own origins (g, k, 3), the first `counts` (g,) of each group's, the rest at the vertex, raised along `direction`
-    (g, 3) until it is at least `offset` in front of every plane through the vertex (_planes_to_clear's: `planes` (g,
-    p, 3), `climbs` (g, p), zero for none), as each row's own origin is in front of its own."""
-    steps = (origins - positions[:, None]).sum(axis=1) / counts[:, None]
+def _shared_origins(steps, counts, positions, planes, direction, climbs, offset):
+    """(g, 3) one ray origin for each group of rows (g, k) at one vertex (`positions` (g, 3)): the vertex plus the mean
+    of the rows' steps to their own origins (g, k, 3; the first `counts` (g,) of each group's are rows, the rest
+    zero), raised along `direction` (g, 3) until it is at least `offset` in front of every plane through the vertex
+    (_planes_to_clear's: `planes` (g, p, 3), `climbs` (g, p), zero for none), as each row's own origin is in front of
+    its own."""
+    steps = steps.sum(axis=1) / counts[:, None]
     heights = np.einsum("gd,gpd->gp", steps, planes)
     raise_by = np.where(climbs > 0.0, np.maximum((offset - heights) / np.maximum(climbs, 1e-3), 0.0), 0.0)
     return positions + steps + raise_by.max(axis=1)[:, None] * direction
