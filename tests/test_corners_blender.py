@@ -5,6 +5,7 @@ import json
 
 import bpy
 import numpy as np
+import pytest
 
 from benchmarks import assets
 from conftest import run_cli
@@ -47,6 +48,27 @@ def test_smooth_meshes_are_baked_with_their_vertex_normals_exactly(empty_scene):
     assert surface.corner_points is None and surface.split_vertices == 0
     expected = geometry.directions_to_world(np.array(sphere.matrix_world), mesh_arrays.mesh_vertex_normals(sphere.data))
     np.testing.assert_array_equal(surface.receiver.normals, expected)
+
+
+def test_normals_to_world_stay_perpendicular_to_their_surfaces_under_shear_scale_and_mirror():
+    """A normal n of a surface containing tangent t (n·t = 0) goes to a unit normal of the transformed surface: it is
+    perpendicular to M·t, on the side of the inverse transpose M^-T·n, mirrored or not; a flattening matrix has no
+    such normal."""
+    rng = np.random.default_rng(3)
+    normals = rng.standard_normal((200, 3))
+    normals /= np.linalg.norm(normals, axis=1, keepdims=True)
+    tangents = np.cross(normals, rng.standard_normal((200, 3)))
+    for mirror in (1.0, -1.0):
+        matrix = np.eye(4)
+        matrix[:3, :3] = rng.standard_normal((3, 3)) @ np.diag([mirror, 2.0, 0.5])
+        world = geometry.directions_to_world(matrix, normals)
+        np.testing.assert_allclose(np.linalg.norm(world, axis=1), 1.0, atol=1e-12)
+        np.testing.assert_allclose(np.einsum("ij,ij->i", world, tangents @ matrix[:3, :3].T), 0.0, atol=1e-9)
+        # the same side as the inverse transpose (which maps n to a positive multiple of M^-T n)
+        inverse_transpose = normals @ np.linalg.inv(matrix[:3, :3])
+        assert (np.einsum("ij,ij->i", world, inverse_transpose) > 0).all()
+    with pytest.raises(np.linalg.LinAlgError):
+        geometry.directions_to_world(np.diag([1.0, 0.0, 1.0, 1.0]), normals)
 
 
 def test_shading_points_skip_the_corner_normals_only_where_blender_shades_by_vertex(empty_scene):

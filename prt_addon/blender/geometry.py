@@ -30,8 +30,14 @@ def points_to_world(matrix, points: np.ndarray) -> np.ndarray:
 def directions_to_world(matrix, normals: np.ndarray) -> np.ndarray:
     """Object-space normals (N, 3) to unit world-space normals through the inverse transpose of matrix_world;
     zero rows stay zero."""
-    m = np.asarray(matrix, dtype=np.float64)
-    return sampling.unit_or_zero(normals @ np.linalg.inv(m[:3, :3]))
+    m = np.asarray(matrix, dtype=np.float64)[:3, :3]
+    # The inverse's rows from the columns' cross products, divided by the determinant: np.linalg.inv runs OpenBLAS's
+    # threaded solver even for 3 × 3 (see sampling.SINGLE_THREAD_PRODUCT).
+    cofactors = np.cross(m[:, [1, 2, 0]].T, m[:, [2, 0, 1]].T)
+    determinant = float(m[:, 0] @ cofactors[0])
+    if determinant == 0.0:
+        raise np.linalg.LinAlgError("Singular matrix")
+    return sampling.unit_or_zero(sampling.one_thread_product(normals, cofactors / determinant))
 
 
 # -- which objects --------------------------------------------------------------------------------------------

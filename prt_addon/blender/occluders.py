@@ -3,7 +3,7 @@ convex hull bounds it, and the flat convex polygons among it that the core integ
 
 import numpy as np
 
-from ..core import bake, polygons
+from ..core import bake, polygons, sampling
 from .geometry import points_to_world
 from .mesh_arrays import mesh_positions, mesh_triangles
 
@@ -113,6 +113,6 @@ def _outside_polytope_of_extremes(points: np.ndarray):
     normals, offsets = normals * outward[:, None], offsets * outward
     tolerance = 1e-5 * (np.abs(points).max() + 1.0)  # bmesh stores float32: keep points near the faces
     keep = np.concatenate([
-        np.any(block @ normals.T - offsets >= -tolerance, axis=1)
+        np.any(sampling.one_thread_product(block, normals.T) - offsets >= -tolerance, axis=1)
         for block in np.array_split(points, max(1, len(points) // HULL_TEST_POINTS))])
     return points[keep]

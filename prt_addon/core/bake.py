@@ -40,8 +40,6 @@ WEIGHT_BYTES_PER_BATCH = 1 << 20
 # Basis values that _weighted_means evaluates at once: 4M values = 32 MB in float64 (16 MB for a shared group's
 # float32, weight_dtype), whatever the order and rays.
 REPLICATE_VALUES_AT_ONCE = 1 << 22
-# Multiplications in one matrix product that OpenBLAS still does on one thread (it splits those above 2^18).
-SINGLE_THREAD_PRODUCT = 1 << 16
 # Ray origins sit this fraction of the scene's diagonal above the surface: scale-free, and far above
 # float32 rounding because the geometry is recentred on the scene's bounding box before the BVH is built.
 OFFSET_FRACTION = 1e-5
@@ -174,12 +172,8 @@ def provably_unoccluded(positions, normals, hull, offset) -> np.ndarray:
     """
     if len(hull) == 0:
         return np.ones(len(positions), dtype=bool)
-    # In products of at most SINGLE_THREAD_PRODUCT multiplications: OpenBLAS splits a larger one (a chunk of corner
-    # points, 1,500 rows × the cow's 145 hull points) over threads, and its idle thread then spins on the other core
-    # for about 0.1 s, through the rays that follow (the flat cow's bake took 2.0× its wall time in CPU, now 1.1×).
-    step = max(1, SINGLE_THREAD_PRODUCT // (3 * len(hull)))
-    highest = np.concatenate([np.max(normals[first:first + step] @ hull.T, axis=1)
-                              for first in range(0, len(normals), step)] or [np.empty(0)])
+    # A chunk of corner points (1,500 rows × the cow's 145 hull points) is a product OpenBLAS would thread.
+    highest = np.max(sampling.one_thread_product(normals, hull.T), axis=1)
     return highest - np.einsum("ij,ij->i", normals, positions) < 0.5 * offset
 
 
