@@ -24,7 +24,7 @@ def mesh_shading_points(mesh) -> corners.ShadingPoints:
 def points_to_world(matrix, points: np.ndarray) -> np.ndarray:
     """Object-space points (N, 3) through a 4 × 4 matrix_world."""
     m = np.asarray(matrix, dtype=np.float64)
-    return points @ m[:3, :3].T + m[:3, 3]
+    return sampling.one_thread_product(points, m[:3, :3].T) + m[:3, 3]
 
 
 def directions_to_world(matrix, normals: np.ndarray) -> np.ndarray:
@@ -133,7 +133,7 @@ def surface_from_object(ob, depsgraph, notes: list, for_storage: bool = True, al
     world_normals = directions_to_world(matrix, normals)
     usable = used & (np.linalg.norm(world_normals, axis=1) > 0)
     world_normals[~usable] = 0.0
-    along_faces = towards_faces @ matrix[:3, :3].T
+    along_faces = sampling.one_thread_product(towards_faces, matrix[:3, :3].T)
     tangent = along_faces - np.einsum("ij,ij->i", along_faces, world_normals)[:, None] * world_normals
     scale = np.linalg.norm(np.ptp(world_positions, axis=0))
     inward, surface_step = (sampling.unit_or_zero(step, 1e-12 * scale) for step in (tangent, along_faces))

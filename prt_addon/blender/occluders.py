@@ -105,7 +105,7 @@ def _outside_polytope_of_extremes(points: np.ndarray):
     """Akl-Toussaint: a point strictly inside the hull of some extreme points is no hull vertex, so the exact
     hull only needs the rest (for a room with objects inside, a handful of points instead of every vertex)."""
     axes = np.array([(x, y, z) for x in (-1, 0, 1) for y in (-1, 0, 1) for z in (-1, 0, 1) if (x, y, z) != (0, 0, 0)])
-    extremes = points[np.unique(np.argmax(points @ axes.T, axis=0))]
+    extremes = points[np.unique(np.argmax(sampling.one_thread_product(points, axes.T), axis=0))]
     inner, (normals, offsets) = _hull(extremes)
     if len(inner) < 4 or len(normals) < 4:
         return None  # flat: no volume to test against
