@@ -48,6 +48,48 @@ def test_ray_groups_part_a_vertex_only_where_its_normals_spread_beyond_the_share
     np.testing.assert_array_equal(corners.ray_groups(point_vertices, normals, 3), [0, 1, 2, 3, 0, 5, 3, 2, 2])
 
 
+def greedy_parting(normals):
+    """The parting rule, one vertex at a time (normals (k, 3)): the point with the most others within SHARE_COSINE
+    of it gathers them, then those farthest from the group's mean leave one by one until all are within it."""
+    near = normals @ normals.T >= corners.SHARE_COSINE
+    np.fill_diagonal(near, True)
+    left, groups = np.ones(len(normals), dtype=bool), []
+    while left.any():
+        members = list(np.flatnonzero(near[np.argmax((near & left).sum(1) * left)] & left))
+        while len(members) > 1:
+            mean = normals[members].sum(0)
+            cosines = normals[members] @ (mean / max(np.linalg.norm(mean), 1e-300))
+            if cosines.min() >= corners.SHARE_COSINE:
+                break
+            members.pop(int(np.argmin(cosines)))
+        left[members] = False
+        groups.append(members)
+    return groups
+
+
+def test_ray_groups_part_every_vertex_at_once_as_the_greedy_rule_does_one_by_one():
+    """Vertices of 2-12 points with normals from nearly one direction to any, some zero (degenerate faces), parted
+    all at once, give the labels of the rule applied vertex by vertex."""
+    generator = np.random.default_rng(11)
+    # points 0-399 are the vertices' own, the rest their other corners' (as core.corners.shading_points numbers them)
+    point_vertices = np.concatenate([np.arange(400), np.repeat(np.arange(400), generator.integers(1, 12, 400))])
+    spread = generator.uniform(0.2, 3.0, 400)[point_vertices, None]
+    normals = generator.normal(size=(len(point_vertices), 3)) * spread * [1.0, 1.0, 0.0] + [0.0, 0.0, 1.0]
+    normals /= np.linalg.norm(normals, axis=1, keepdims=True)
+    normals[generator.random(len(normals)) < 0.02] = 0.0
+    labels = corners.ray_groups(point_vertices, normals, 400)
+    expected, parted = point_vertices.copy(), 0
+    for vertex in range(400):
+        points = np.flatnonzero(point_vertices == vertex)
+        mean = normals[points].sum(0) / max(np.linalg.norm(normals[points].sum(0)), 1e-300)
+        if (normals[points] @ mean).min() < corners.SHARE_COSINE:  # else one group, labelled by the vertex
+            parted += 1
+            for members in greedy_parting(normals[points]):
+                expected[points[members]] = points[members].min()
+    np.testing.assert_array_equal(labels, expected)
+    assert 100 < parted < 400 and len(np.unique(labels)) > 400 + parted  # teeth: most vertices part, some in 3+
+
+
 def test_every_ray_group_lies_within_the_share_angle_of_its_mean_normal():
     """Random corner normals: a group never spans two vertices, its normals are within SHARE_COSINE of their mean,
     and a vertex whose normals all are forms one group."""

@@ -96,29 +96,41 @@ def ray_groups(point_vertices: np.ndarray, point_normals: np.ndarray, vertex_cou
     whole = ~spread[point_vertices]
     labels[whole] = point_vertices[whole]
     parted = np.flatnonzero(~whole)  # in order of vertex, then point
-    parted = parted[np.argsort(point_vertices[parted], kind="stable")]
-    starts = np.flatnonzero(np.r_[True, np.diff(point_vertices[parted]) != 0])
-    for points in np.split(parted, starts[1:]):
-        for members in _parted(point_normals[points]):
-            labels[points[members]] = points[members].min()
+    if len(parted):
+        parted = parted[np.argsort(point_vertices[parted], kind="stable")]
+        starts = np.flatnonzero(np.r_[True, np.diff(point_vertices[parted]) != 0])
+        counts = np.diff(np.r_[starts, len(parted)])
+        by_vertex = np.full((len(starts), counts.max()), -1)  # each parted vertex's points, padded with -1
+        place = np.arange(len(parted)) - np.repeat(starts, counts)
+        by_vertex[np.repeat(np.arange(len(starts)), counts), place] = parted
+        labels[parted] = _parted(by_vertex, point_normals)[by_vertex >= 0]
     return labels
 
 
-def _parted(normals: np.ndarray):
-    """Index arrays parting rows of `normals` (k, 3) into groups within SHARE_COSINE of their mean: the row with the
-    most others within SHARE_COSINE of it gathers them, and those farthest from their mean leave one by one until
-    all are within it; the rest are parted alike."""
-    near = normals @ normals.T >= SHARE_COSINE
-    np.fill_diagonal(near, True)  # a zero normal (a degenerate face's) is a group of its own
-    left = np.ones(len(normals), dtype=bool)
+def _parted(points, normals):
+    """(V, K) labels for each vertex's points (`points` (V, K), increasing, padded with -1; `normals` of every
+    point), parting them into groups within SHARE_COSINE of their mean: the point with the most others within
+    SHARE_COSINE of it gathers them, and those farthest from their mean leave one by one until all are within it;
+    the rest are parted alike. A group's label is its lowest point. Every vertex is parted at once (the flat cow's
+    321 parted vertices one by one took 9 ms of its 10 ms gathering)."""
+    real = points >= 0
+    rows = np.where(real, points, 0)
+    normals = np.where(real[..., None], normals[rows], 0.0)  # (V, K, 3)
+    near = np.einsum("vid,vjd->vij", normals, normals) >= SHARE_COSINE
+    near |= np.eye(points.shape[1], dtype=bool)  # a zero normal (a degenerate face's) is a group of its own
+    near &= real[:, :, None] & real[:, None, :]
+    left, labels, every = real.copy(), np.full(points.shape, -1), np.arange(len(points))
     while left.any():
-        gathered = near & left
-        members = np.flatnonzero(gathered[np.argmax(gathered.sum(1) * left)])
-        while len(members) > 1:
-            mean = normals[members].sum(0)
-            cosines = normals[members] @ (mean / max(np.linalg.norm(mean), 1e-300))
-            if cosines.min() >= SHARE_COSINE:
+        gathered = near & left[:, None, :]
+        members = gathered[every, np.argmax(gathered.sum(2) * left, axis=1)] & left.any(1)[:, None]
+        while True:  # each vertex drops its member farthest from their mean until all are within it
+            mean = (members[..., None] * normals).sum(1)
+            mean /= np.maximum(np.linalg.norm(mean, axis=1), 1e-300)[:, None]
+            cosines = np.where(members, np.einsum("vkd,vd->vk", normals, mean), np.inf)
+            dropping = np.flatnonzero((members.sum(1) > 1) & (cosines.min(1) < SHARE_COSINE))
+            if not len(dropping):
                 break
-            members = np.delete(members, np.argmin(cosines))
-        left[members] = False
-        yield members
+            members[dropping, np.argmin(cosines[dropping], axis=1)] = False
+        left &= ~members
+        labels = np.where(members, np.where(members, rows, np.iinfo(np.int64).max).min(1)[:, None], labels)
+    return labels
