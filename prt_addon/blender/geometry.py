@@ -6,7 +6,7 @@ from dataclasses import dataclass
 import bpy
 import numpy as np
 
-from ..core import bake, corners, sampling
+from ..core import arrays, bake, corners, sampling
 from ..core.errors import InputError
 from . import materials
 from .mesh_arrays import (mesh_corner_normals, mesh_corner_vertices, mesh_positions, mesh_triangles,
@@ -24,7 +24,7 @@ def mesh_shading_points(mesh) -> corners.ShadingPoints:
 def points_to_world(matrix, points: np.ndarray) -> np.ndarray:
     """Object-space points (N, 3) through a 4 × 4 matrix_world."""
     m = np.asarray(matrix, dtype=np.float64)
-    return sampling.one_thread_product(points, m[:3, :3].T) + m[:3, 3]
+    return arrays.one_thread_product(points, m[:3, :3].T) + m[:3, 3]
 
 
 def directions_to_world(matrix, normals: np.ndarray) -> np.ndarray:
@@ -32,12 +32,12 @@ def directions_to_world(matrix, normals: np.ndarray) -> np.ndarray:
     zero rows stay zero."""
     m = np.asarray(matrix, dtype=np.float64)[:3, :3]
     # The inverse's rows from the columns' cross products, divided by the determinant: np.linalg.inv runs OpenBLAS's
-    # threaded solver even for 3 × 3 (see sampling.SINGLE_THREAD_PRODUCT).
+    # threaded solver even for 3 × 3 (see arrays.SINGLE_THREAD_PRODUCT).
     cofactors = np.cross(m[:, [1, 2, 0]].T, m[:, [2, 0, 1]].T)
     determinant = float(m[:, 0] @ cofactors[0])
     if determinant == 0.0:
         raise np.linalg.LinAlgError("Singular matrix")
-    return sampling.unit_or_zero(sampling.one_thread_product(normals, cofactors / determinant))
+    return sampling.unit_or_zero(arrays.one_thread_product(normals, cofactors / determinant))
 
 
 # -- which objects --------------------------------------------------------------------------------------------
@@ -133,9 +133,10 @@ def surface_from_object(ob, depsgraph, notes: list, for_storage: bool = True, al
     world_normals = directions_to_world(matrix, normals)
     usable = used & (np.linalg.norm(world_normals, axis=1) > 0)
     world_normals[~usable] = 0.0
-    along_faces = sampling.one_thread_product(towards_faces, matrix[:3, :3].T)
+    along_faces = arrays.one_thread_product(towards_faces, matrix[:3, :3].T)
     tangent = along_faces - np.einsum("ij,ij->i", along_faces, world_normals)[:, None] * world_normals
-    scale = np.linalg.norm(np.ptp(world_positions, axis=0))
+    lowest, highest = arrays.bounds(world_positions)
+    scale = np.linalg.norm(highest - lowest)
     inward, surface_step = (sampling.unit_or_zero(step, 1e-12 * scale) for step in (tangent, along_faces))
     if not usable.all():
         notes.append(f"{ob.name!r}: {int((~usable).sum())} vertices are loose or only on zero-area faces; "

@@ -3,7 +3,7 @@ convex hull bounds it, and the flat convex polygons among it that the core integ
 
 import numpy as np
 
-from ..core import bake, polygons, sampling
+from ..core import arrays, bake, polygons
 from .geometry import points_to_world
 from .mesh_arrays import mesh_positions, mesh_triangles
 
@@ -71,13 +71,13 @@ def convex_hull_points(points: np.ndarray) -> np.ndarray:
 
     Flat or collinear input has no 3D hull; the bounding box's corners then bound it (conservative: a
     vertex may lose its proof of being unoccluded, never gain a wrong one)."""
-    centre = 0.5 * (points.min(0) + points.max(0))  # bmesh decides in float32: keep its rounding scene-relative
+    low, high = arrays.bounds(points)
+    centre = 0.5 * (low + high)  # bmesh decides in float32: keep its rounding scene-relative
     candidates = _outside_polytope_of_extremes(points - centre)
     if candidates is not None:
         hull, _ = _hull(candidates)
         if len(hull) >= 4:
             return candidates[hull] + centre  # the exact points: bmesh rounds coordinates to float32
-    low, high = points.min(0), points.max(0)
     return np.array([[x, y, z] for x in (low[0], high[0]) for y in (low[1], high[1]) for z in (low[2], high[2])])
 
 
@@ -105,7 +105,7 @@ def _outside_polytope_of_extremes(points: np.ndarray):
     """Akl-Toussaint: a point strictly inside the hull of some extreme points is no hull vertex, so the exact
     hull only needs the rest (for a room with objects inside, a handful of points instead of every vertex)."""
     axes = np.array([(x, y, z) for x in (-1, 0, 1) for y in (-1, 0, 1) for z in (-1, 0, 1) if (x, y, z) != (0, 0, 0)])
-    extremes = points[np.unique(np.argmax(sampling.one_thread_product(points, axes.T), axis=0))]
+    extremes = points[np.unique(np.argmax(arrays.one_thread_product(points, axes.T), axis=0))]
     inner, (normals, offsets) = _hull(extremes)
     if len(inner) < 4 or len(normals) < 4:
         return None  # flat: no volume to test against
@@ -113,6 +113,6 @@ def _outside_polytope_of_extremes(points: np.ndarray):
     normals, offsets = normals * outward[:, None], offsets * outward
     tolerance = 1e-5 * (np.abs(points).max() + 1.0)  # bmesh stores float32: keep points near the faces
     keep = np.concatenate([
-        np.any(sampling.one_thread_product(block, normals.T) - offsets >= -tolerance, axis=1)
+        np.any(arrays.one_thread_product(block, normals.T) - offsets >= -tolerance, axis=1)
         for block in np.array_split(points, max(1, len(points) // HULL_TEST_POINTS))])
     return points[keep]

@@ -18,7 +18,7 @@ import zlib
 
 import numpy as np
 
-from . import corners, interreflect, lobes, polygons, sampling, settings as spec, sh
+from . import arrays, corners, interreflect, lobes, polygons, sampling, settings as spec, sh
 
 MAX_REPLICATES = 16
 # Random streams per vertex (rounds × replicates): MAX_ROUNDS rounds of at most 40 lattice sizes each.
@@ -135,13 +135,15 @@ class Occluders:
     def center(self) -> np.ndarray:
         if len(self.vertices) == 0:
             return np.zeros(3)
-        return 0.5 * (self.vertices.min(0) + self.vertices.max(0))
+        low, high = arrays.bounds(self.vertices)
+        return 0.5 * (low + high)
 
     @property
     def diagonal(self) -> float:
         if len(self.vertices) == 0:
             return 1.0
-        return float(np.linalg.norm(self.vertices.max(0) - self.vertices.min(0))) or 1.0
+        low, high = arrays.bounds(self.vertices)
+        return float(np.linalg.norm(high - low)) or 1.0
 
 
 @dataclass
@@ -173,7 +175,7 @@ def provably_unoccluded(positions, normals, hull, offset) -> np.ndarray:
     if len(hull) == 0:
         return np.ones(len(positions), dtype=bool)
     # A chunk of corner points (1,500 rows × the cow's 145 hull points) is a product OpenBLAS would thread.
-    highest = np.max(sampling.one_thread_product(normals, hull.T), axis=1)
+    highest = np.max(arrays.one_thread_product(normals, hull.T), axis=1)
     return highest - np.einsum("ij,ij->i", normals, positions) < 0.5 * offset
 
 

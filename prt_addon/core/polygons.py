@@ -13,7 +13,7 @@ import math
 import numpy as np
 from numpy.polynomial import legendre
 
-from . import sampling, sh
+from . import arrays, sh
 
 # Detection: coplanar to this fraction of the object's size, and its triangles cover their convex hull to this
 # fraction of its area (a hole or a notch would only cost accuracy, never correctness, but then gains nothing).
@@ -31,22 +31,23 @@ def convex_polygon(vertices, triangles):
     off its plane is not taken)."""
     if len(triangles) == 0 or not np.isfinite(vertices).all():
         return None
-    size = float(np.ptp(vertices, axis=0).max())
+    low, high = arrays.bounds(vertices)
+    size = float((high - low).max())
     # Most objects are not flat: a plane from a few triangles rejects them before any per-triangle work.
     guess, _ = _areas(vertices, triangles[:64])
-    if not np.linalg.norm(guess) > 0.0 or np.abs(sampling.one_thread_product(vertices - vertices[0], guess)).max() \
+    if not np.linalg.norm(guess) > 0.0 or np.abs(arrays.one_thread_product(vertices - vertices[0], guess)).max() \
             > PLANAR_TOLERANCE * size * np.linalg.norm(guess):
         return None
     total, area = _areas(vertices, triangles)
     if not area > 0.0 or 0.5 * np.linalg.norm(total) < (1.0 - COVER_TOLERANCE) * area:
         return None  # faces turned both ways
     normal = total / np.linalg.norm(total)
-    heights = sampling.one_thread_product(vertices - vertices[0], normal)
+    heights = arrays.one_thread_product(vertices - vertices[0], normal)
     if np.abs(heights).max() > PLANAR_TOLERANCE * size:
         return None
     tangent = np.cross(normal, [1.0, 0.0, 0.0] if abs(normal[0]) < 0.9 else [0.0, 1.0, 0.0])
     tangent /= np.linalg.norm(tangent)
-    flat = sampling.one_thread_product(vertices - vertices[0], np.stack([tangent, np.cross(normal, tangent)], 1))
+    flat = arrays.one_thread_product(vertices - vertices[0], np.stack([tangent, np.cross(normal, tangent)], 1))
     hull = _convex_hull_2d(flat, tolerance=PLANAR_TOLERANCE * size)
     if not 3 <= len(hull) <= MAX_EDGES:
         return None

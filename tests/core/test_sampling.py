@@ -257,32 +257,3 @@ def test_unit_or_zero_scales_to_unit_length_and_leaves_short_vectors_zero():
     np.testing.assert_array_equal(sampling.unit_or_zero(vectors), [[0.6, 0.0, 0.8], [0, 0, 0], [1, 0, 0], [0, -1, 0]])
     np.testing.assert_array_equal(sampling.unit_or_zero(vectors, shortest=1e-6)[2], [0.0, 0.0, 0.0])
 
-
-class _ShapeRecorder(np.ndarray):
-    """An array that records the shapes of every matrix product it takes part in."""
-    products = []
-
-    def __array_ufunc__(self, ufunc, method, *inputs, **kwargs):
-        if ufunc is np.matmul:
-            _ShapeRecorder.products.append(tuple(np.shape(x) for x in inputs))
-        if "out" in kwargs:
-            kwargs["out"] = tuple(np.asarray(x) for x in kwargs["out"])
-        return getattr(ufunc, method)(*(np.asarray(x) for x in inputs), **kwargs)
-
-
-def test_one_thread_product_is_the_matrix_product_bit_for_bit_in_blocks_below_the_threading_limit():
-    rng = np.random.default_rng(4)
-    rows, matrix = rng.standard_normal((5000, 3)), rng.standard_normal((3, 145))
-    _ShapeRecorder.products.clear()
-    product = sampling.one_thread_product(rows.view(_ShapeRecorder), matrix)
-    np.testing.assert_array_equal(np.asarray(product), rows @ matrix)
-    sizes = [a[0] * a[1] * b[1] for a, b in _ShapeRecorder.products]
-    assert max(sizes) <= sampling.SINGLE_THREAD_PRODUCT and sum(a[0] for a, _ in _ShapeRecorder.products) == 5000
-    assert len(sizes) == -(-5000 // (sampling.SINGLE_THREAD_PRODUCT // (3 * 145)))
-    # A small product is one block; a vector is taken by einsum (no matrix product at all).
-    _ShapeRecorder.products.clear()
-    np.testing.assert_array_equal(sampling.one_thread_product(rows[:10].view(_ShapeRecorder), matrix),
-                                  rows[:10] @ matrix)
-    vector = sampling.one_thread_product(rows.view(_ShapeRecorder), matrix[:, 0])
-    assert len(_ShapeRecorder.products) == 1
-    np.testing.assert_allclose(vector, rows @ matrix[:, 0], rtol=0, atol=1e-14)
