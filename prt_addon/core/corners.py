@@ -111,8 +111,8 @@ def _parted(points, normals):
     """(V, K) labels for each vertex's points (`points` (V, K), increasing, padded with -1; `normals` of every
     point), parting them into groups within SHARE_COSINE of their mean: the point with the most others within
     SHARE_COSINE of it gathers them, and those farthest from their mean leave one by one until all are within it;
-    the rest are parted alike. A group's label is its lowest point. Every vertex is parted at once (the flat cow's
-    321 parted vertices one by one took 9 ms of its 10 ms gathering)."""
+    the rest are parted alike. A group's label is its lowest point. Every vertex is parted at once: one by one, the
+    flat cow's 321 parted vertices took 9 of the 10 ms its ray groups took."""
     real = points >= 0
     rows = np.where(real, points, 0)
     normals = np.where(real[..., None], normals[rows], 0.0)  # (V, K, 3)

@@ -160,4 +160,3 @@ def unit_or_zero(vectors, shortest=0.0):
     vectors = np.asarray(vectors, dtype=np.float64)
     length = np.linalg.norm(vectors, axis=-1, keepdims=True)
     return np.where(length > shortest, vectors / np.where(length > 0, length, 1.0), 0.0)
-
