@@ -204,9 +204,9 @@ class RayCaster:
         from mathutils import Vector  # with the BVH tree, the only non-numpy dependencies of the core
         from mathutils.bvhtree import BVHTree
         self._vector = Vector
-        self.center = occluders.center
-        self.offset = OFFSET_FRACTION * occluders.diagonal
-        self.max_distance = 2.0 * occluders.diagonal
+        self.center, diagonal = occluders.center, occluders.diagonal  # each takes the vertices' bounds
+        self.offset = OFFSET_FRACTION * diagonal
+        self.max_distance = 2.0 * diagonal
         self.hull = occluders.hull - self.center
         self.vertices = occluders.vertices - self.center
         self.triangles = occluders.triangles

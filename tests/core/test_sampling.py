@@ -256,4 +256,3 @@ def test_unit_or_zero_scales_to_unit_length_and_leaves_short_vectors_zero():
     vectors = np.array([[3.0, 0.0, 4.0], [0.0, 0.0, 0.0], [1e-9, 0.0, 0.0], [0.0, -2.0, 0.0]])
     np.testing.assert_array_equal(sampling.unit_or_zero(vectors), [[0.6, 0.0, 0.8], [0, 0, 0], [1, 0, 0], [0, -1, 0]])
     np.testing.assert_array_equal(sampling.unit_or_zero(vectors, shortest=1e-6)[2], [0.0, 0.0, 0.0])
-
