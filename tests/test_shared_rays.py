@@ -114,10 +114,11 @@ def test_every_ray_group_lies_within_the_share_angle_of_its_mean_normal():
 @pytest.mark.parametrize("as_polygon", [False, True], ids=["rays", "closed-form roof"])
 def test_shared_rays_are_unbiased_and_their_error_honest(as_polygon):
     """400 vertices, each three corner points casting one group's rays: every point's mean matches quadrature, the
-    actual errors match the estimated ones, and the group cast as many rays as one point alone would."""
+    actual errors match the estimated ones, and the group cast at most as many rays as one point alone would (less
+    those below every point's horizon)."""
     count, order = 400, 3
     result = bake_points(shared_vertices(count), roof_occluders(as_polygon), order=order, samples=64)
-    assert result.rays.sum() == count * 64
+    assert 0.9 * count * 64 < result.rays.sum() <= count * 64
     expected = truth(order)
     transfer = result.transfer.reshape(count, 3, -1)
     spread = transfer.std(0) / np.sqrt(count)
@@ -138,9 +139,34 @@ def test_shared_rays_cost_about_one_point_for_the_accuracy_of_each():
     alone = shared_vertices(count)
     alone.ray_groups = None
     own, shared = (bake_points(r, roof_occluders(), order=4, samples=128) for r in (alone, shared_vertices(count)))
-    assert shared.rays.sum() * 3 == own.rays.sum()
+    assert shared.rays.sum() * 3 <= own.rays.sum()
     ratio = np.sqrt(np.mean(shared.rel_error ** 2) / np.mean(own.rel_error ** 2))
     assert ratio < 1.35, ratio
+
+
+def test_rays_below_every_points_horizon_are_not_cast_and_change_nothing(monkeypatch):
+    """A shared group's cap reaches below its points' horizons; a ray below all of them weighs nothing in any
+    estimate, so it is not cast. The bake is bit for bit the one that casts every ray, every ray cast lies above
+    some point's horizon, and the rays reported are those cast."""
+    count = 50
+    skipping = bake_points(shared_vertices(count), roof_occluders(), order=3, samples=64)
+    cast, left = [], []
+    original = bake.RayCaster.occluded
+
+    def casting_every_ray(self, origins, directions, hits=False, live=None):
+        if live is not None:
+            cast.append(directions[live])
+            left.append(directions[~live])
+        return original(self, origins, directions, hits)
+
+    monkeypatch.setattr(bake.RayCaster, "occluded", casting_every_ray)
+    every = bake_points(shared_vertices(count), roof_occluders(), order=3, samples=64)
+    np.testing.assert_array_equal(skipping.transfer, every.transfer)
+    np.testing.assert_array_equal(skipping.std_error, every.std_error)
+    cast, left = np.concatenate(cast), np.concatenate(left)
+    assert len(left) > 0.01 * count * 64  # teeth: the cap does reach below every horizon
+    assert (left @ NORMALS.T).max() <= 1e-6 and (cast @ NORMALS.T).max(axis=1).min() > -1e-6
+    assert skipping.rays.sum() == len(cast) == count * 64 - len(left)
 
 
 def test_a_shared_group_hands_each_point_its_hits_with_unbiased_weights():
@@ -244,7 +270,7 @@ def test_a_v_grooves_crease_points_see_the_other_wing_as_quadrature_does(rise):
     receiver = bake.Receiver("groove", np.repeat(inner, 2, axis=0), np.tile(normals, (count, 1)), 11, into_wings,
                              np.repeat(np.arange(count) * 2, 2), into_wings)
     result = bake_points(receiver, occluders, order=order, samples=64)
-    assert result.rays.sum() == count * 64
+    assert 0 < result.rays.sum() <= count * 64  # a group casts at most what one point would
     expected = np.tile([bake.unshadowed_transfer(order, normal[None])[0] - wedge_transfer(order, normal, rise, side)
                         for normal, side in zip(normals, (1.0, -1.0))], (count, 1))
     assert np.abs(expected - bake.unshadowed_transfer(order, receiver.normals)).max() > 0.05  # teeth: a real shadow

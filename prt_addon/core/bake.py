@@ -213,28 +213,35 @@ class RayCaster:
         self.polygons = [polygon - self.center for polygon in occluders.polygons]
         self.tree = BVHTree.FromPolygons(self.vertices.tolist(), self.triangles.tolist(), all_triangles=True)
 
-    def occluded(self, origins: np.ndarray, directions: np.ndarray, hits: bool = False):
+    def occluded(self, origins: np.ndarray, directions: np.ndarray, hits: bool = False, live=None):
         """origins (c, 3), directions (c, k, 3) → (c, k) bool: did the ray hit anything; with `hits`, also the
-        hit triangles (−1 for none) and distances (NaN for none)."""
+        hit triangles (−1 for none) and distances (NaN for none). Given `live` (c, k) bool, only those rays are
+        cast; the others count as missed."""
         c, k = directions.shape[:2]
-        casts = self._casts(origins, directions)
+        coordinates = directions.reshape(-1, 3).T  # (3, c·k): rows contiguous for component-major directions
+        if live is None:
+            per_origin = repeat(k)
+        else:  # row by row: a boolean index on the second axis of the (3, c·k) view is 5× slower
+            mask = live.ravel()
+            coordinates = [row[mask] for row in coordinates]
+            per_origin = np.count_nonzero(live, axis=1).tolist()
+        casts = self._casts(origins, coordinates, per_origin)
         if not hits:  # a miss returns (None, None, None, None); bytes() collects the flags fastest
-            found = bytes(map(is_not, map(itemgetter(3), casts), repeat(None)))
-            return np.frombuffer(found, dtype=bool).reshape(c, k)
-        found = np.array(list(map(itemgetter(2, 3), casts)), dtype=np.float64).reshape(c, k, 2)
-        distance = found[..., 1]
-        occluded = ~np.isnan(distance)
-        return occluded, np.nan_to_num(found[..., 0], nan=-1.0).astype(np.int64), distance  # both NaN on a miss
+            found = np.frombuffer(bytes(map(is_not, map(itemgetter(3), casts), repeat(None))), dtype=bool)
+            return _scattered(found, live, False).reshape(c, k)
+        found = np.array(list(map(itemgetter(2, 3), casts)), dtype=np.float64).reshape(-1, 2)
+        triangle = np.nan_to_num(found[:, 0], nan=-1.0).astype(np.int64)  # both NaN on a miss
+        distance = _scattered(found[:, 1], live, np.nan).reshape(c, k)
+        return ~np.isnan(distance), _scattered(triangle, live, -1).reshape(c, k), distance
 
-    def _casts(self, origins, directions: np.ndarray):
-        """ray_cast results of directions (c, k, 3) from c origins, lazily, looped in C by map(). Directions are
-        read one coordinate at a time (contiguous for component-major arrays) through memoryviews, which make
-        each float as the loop reaches it: 4 % of a bake's time less than building lists of them first. Each
-        origin is a Vector, which ray_cast reads with a copy where a tuple is parsed float by float for every ray:
-        1.5 % of a ray's cost, and the same float32 values."""
-        k = directions.shape[1]
-        xs, ys, zs = map(memoryview, np.ascontiguousarray(directions.reshape(-1, 3).T))
-        per_ray_origins = chain.from_iterable(repeat(origin, k) for origin in map(self._vector, origins.tolist()))
+    def _casts(self, origins, coordinates, per_origin):
+        """ray_cast results of directions given by their coordinates (3 arrays of n), `per_origin` of them (an iterable
+        of counts) from each of the origins (c, 3) in turn, lazily, looped in C by map(). Directions are read one
+        coordinate at a time through memoryviews, which make each float as the loop reaches it: 4 % of a bake's time
+        less than building lists of them first. Each origin is a Vector, which ray_cast reads with a copy where a
+        tuple is parsed float by float for every ray: 1.5 % of a ray's cost, and the same float32 values."""
+        xs, ys, zs = map(memoryview, map(np.ascontiguousarray, coordinates))
+        per_ray_origins = chain.from_iterable(map(repeat, map(self._vector, origins.tolist()), per_origin))
         return map(self.tree.ray_cast, per_ray_origins, zip(xs, ys, zs), repeat(self.max_distance))
 
     def touched_surfaces(self, surface, normals: np.ndarray, steps: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -312,6 +319,16 @@ class RayCaster:
         return interreflect.barycentric(points, corners), np.einsum("ij,ij->i", normals, directions) < 0
 
 
+def _scattered(values, live, missing):
+    """`values` of the live rays (n,) as the values of every ray (`live`'s size), `missing` for the others; `values`
+    itself without a mask."""
+    if live is None:
+        return values
+    every = np.full(live.size, missing, dtype=values.dtype)
+    every[live.ravel()] = values
+    return every
+
+
 def shadowed_chunk(caster: RayCaster, positions, normals, inward, keys, settings: BakeSettings, labels=None,
                    surface_steps=None):
     """Generator: bakes one chunk, yielding the rays cast after each round; returns a ChunkResult. Rows with
@@ -374,15 +391,15 @@ def shadowed_chunk(caster: RayCaster, positions, normals, inward, keys, settings
                 groups = members[part]  # (g, k) rows
                 lattice = lattice_frames[part], None if floor is None else floor[part], points, shifts[part]
                 flat = None if cones is None else (cones[groups[:, 0]], flat_blocked[groups])
-                mean, variance, round_hits = _blocked_round(caster, origins[groups[:, 0]], normals[groups], lattice,
-                                                            unshadowed[groups], flat, settings)
+                mean, variance, round_hits, cast = _blocked_round(caster, origins[groups[:, 0]], normals[groups],
+                                                                  lattice, unshadowed[groups], flat, settings)
                 rows = groups.ravel()
                 if hits is not None:
                     hits.append((rows[round_hits[0]], *round_hits[1:]))
                 rounds.append((rows, group_rays, mean.reshape(len(rows), -1), variance.reshape(len(rows), -1)))
                 used[rows] += group_rays
-                rays[groups[:, 0]] += group_rays  # a group's rays are counted at its first row
-                yield int(len(groups) * group_rays)
+                rays[groups[:, 0]] += cast  # a group's rays are counted at its first row
+                yield int(cast.sum())
         if settings.target_error <= 0.0:
             break
         _, error = _combine(rounds, used, count, order)
@@ -580,7 +597,8 @@ def _blocked_round(caster, origins, normals, lattice, unshadowed, flat, settings
     """One round for g ray groups of k rows (origins (g, 3), the rest (g, k, ...)): each group casts R replicates of
     its own shifted lattice from its origin. `lattice`: each group's frames (g, 3, 3) and cap floor (g,) or None
     (see _caps), the lattice points (m, 2) and each group's shifts (g, R, 2). Returns the mean and variance over
-    replicates of each row's transfer estimate (g, k, n²), and the hits (interreflected mode).
+    replicates of each row's transfer estimate (g, k, n²), the hits (interreflected mode) and the rays each group
+    cast (g,).
 
     A group of one samples its row's cosine lobe. A larger group samples the cap n̄·ω ≥ s about its mean normal n̄
     that covers every row's hemisphere, with density ∝ (n̄·ω − s)^q (q = sampling.CAP_EXPONENT); each row weighs each
@@ -605,24 +623,12 @@ def _blocked_round(caster, origins, normals, lattice, unshadowed, flat, settings
         cast = sampling.cosine_lattice_directions(points, shifts, lattice_frames[:, None], floor[:, None], dtype)
     directions = cast  # (g, R, m, 3)
     cast = cast.reshape(groups, replicates * per_replicate, 3)  # a view: the rays of each group
-    if settings.mode == "interreflected":
-        occluded, triangle, distance = caster.occluded(origins, cast, hits=True)
-    else:
-        occluded = caster.occluded(origins, cast)
-    blocked = occluded.reshape(groups, 1, replicates, per_replicate)
-    if flat is not None:
-        cones, flat_blocked = flat  # a group's cones: its rows share their origin
-        blocked = blocked - polygons.hits(cast, cones).reshape(groups, 1, replicates, per_replicate)
     # Each row's W/m and W·(1 − V)/m per ray (the means' 1/m), made where _weighted_means multiplies them: (g, 2, k,
     # R, m).
     weighed = np.empty((groups, 2, size, replicates, per_replicate), dtype=dtype)
     weights, blocked_weights = weighed[:, 0], weighed[:, 1]
-    if size == 1:  # every weight is 1
-        beta = 1.0 - blocked.mean(axis=(2, 3))[..., None, None]
-        weights[...] = 1.0 / per_replicate
-        np.multiply(blocked, 1.0 / per_replicate, out=blocked_weights)
-        weights = None
-    else:  # W/m = (n·ω)₊ / (π p(ω) m) = (n·(c·ω))₊ with c = 1/(π p m), p the cap's density (sampling.cap_weights)
+    live = None  # every ray is cast
+    if size > 1:  # W/m = (n·ω)₊ / (π p(ω) m) = (n·(c·ω))₊ with c = 1/(π p m), p the cap's density (sampling.cap_weights)
         # Each group's (3, R·m) coordinates, a view of the component-major directions: products with the normals
         # are BLAS matrix products, 30× faster than einsum over the last axis of the (g, R, m, 3) view.
         coordinates = np.moveaxis(directions, -1, 0).reshape(3, groups, -1).transpose(1, 0, 2)
@@ -632,6 +638,26 @@ def _blocked_round(caster, origins, normals, lattice, unshadowed, flat, settings
         # Scaling the 3 coordinates rather than the k rows' weights; a float mask multiplies faster than a bool one.
         np.matmul(normals.astype(dtype), coordinates * per_ray, out=weights.reshape(groups, size, -1))
         np.maximum(weights, 0.0, out=weights)
+        # A ray of the cap below every row's horizon weighs nothing in any estimate: it is not cast (1.6 % of the
+        # flat-shaded cow's rays, nearly all of them hits, which cost the most).
+        live = weights.reshape(groups, size, -1).max(axis=1) > 0.0
+        if live.all():
+            live = None
+    if settings.mode == "interreflected":
+        occluded, triangle, distance = caster.occluded(origins, cast, hits=True, live=live)
+    else:
+        occluded = caster.occluded(origins, cast, live=live)
+    cast_rays = np.full(groups, replicates * per_replicate) if live is None else np.count_nonzero(live, axis=1)
+    blocked = occluded.reshape(groups, 1, replicates, per_replicate)
+    if flat is not None:
+        cones, flat_blocked = flat  # a group's cones: its rows share their origin
+        blocked = blocked - polygons.hits(cast, cones).reshape(groups, 1, replicates, per_replicate)
+    if size == 1:  # every weight is 1
+        beta = 1.0 - blocked.mean(axis=(2, 3))[..., None, None]
+        weights[...] = 1.0 / per_replicate
+        np.multiply(blocked, 1.0 / per_replicate, out=blocked_weights)
+        weights = None
+    else:
         np.multiply(weights, blocked.astype(dtype), out=blocked_weights)
         beta = 1.0 - blocked_weights.sum(axis=(2, 3))[..., None, None] / replicates  # (g, k, 1, 1)
     round_hits = (_round_hits(caster, origins, cast, occluded, triangle, distance, weights, per_replicate)
@@ -644,7 +670,7 @@ def _blocked_round(caster, origins, normals, lattice, unshadowed, flat, settings
     mean = estimate.sum(axis=2) / replicates
     deviation = estimate - mean[:, :, None]
     deviation *= deviation
-    return mean, deviation.sum(axis=2) / (replicates - 1) / replicates, round_hits
+    return mean, deviation.sum(axis=2) / (replicates - 1) / replicates, round_hits, cast_rays
 
 
 def _weighted_means(directions, weighed, order):
