@@ -717,7 +717,7 @@ def _blocked_round(caster, origins, normals, lattice, unshadowed, flat, ring, se
     # Each group's (3, R·m) coordinates, a view of the component-major directions: products with the normals and
     # planes are BLAS matrix products, 30× faster than einsum over the last axis of the (g, R, m, 3) view.
     coordinates = np.moveaxis(directions, -1, 0).reshape(3, groups, -1).transpose(1, 0, 2)
-    live = np.ones(cast.shape[:2], dtype=bool)  # the rays to cast
+    live = None  # the rays to cast: every one
     if size > 1:  # W/m = (n·ω)₊ / (π p(ω) m) = (n·(c·ω))₊ with c = 1/(π p m), p the cap's density (sampling.cap_weights)
         per_ray = np.matmul(lattice_frames[:, 2:].astype(dtype), coordinates)  # n̄·ω (g, 1, R·m)
         per_ray -= floor[:, None, None]
@@ -728,11 +728,12 @@ def _blocked_round(caster, origins, normals, lattice, unshadowed, flat, ring, se
         # A ray of the cap below every row's horizon weighs nothing in any estimate: it is not cast (1.6 % of the
         # flat-shaded cow's rays, nearly all of them hits, which cost the most).
         live = weights.reshape(groups, size, -1).max(axis=1) > 0.0
-    known = None if ring is None else _surely_hit(ring, coordinates.astype(np.float32, copy=False))  # blocked without a cast
+    known = None if ring is None else _surely_hit(ring, coordinates.astype(np.float32, copy=False))  # blocked
     if known is not None:
-        live &= ~known
-    cast_rays = np.count_nonzero(live, axis=1)
-    live = None if cast_rays.sum() == live.size else live
+        live = ~known if live is None else live & ~known
+    cast_rays = np.full(groups, cast.shape[1]) if live is None else np.count_nonzero(live, axis=1)
+    if live is not None and cast_rays.sum() == live.size:
+        live = None
     if settings.mode == "interreflected":
         occluded, triangle, distance = caster.occluded(origins, cast, hits=True, live=live)
     else:
