@@ -237,11 +237,11 @@ class RayCaster:
         return ~np.isnan(distance), _scattered(triangle, live, -1).reshape(c, k), distance
 
     def _casts(self, origins, coordinates, per_origin):
-        """ray_cast results of directions given by their coordinates (3 arrays of n), `per_origin` of them (an iterable
-        of counts) from each of the origins (c, 3) in turn, lazily, looped in C by map(). Directions are read one
-        coordinate at a time through memoryviews, which make each float as the loop reaches it: 4 % of a bake's time
-        less than building lists of them first. Each origin is a Vector, which ray_cast reads with a copy where a
-        tuple is parsed float by float for every ray: 1.5 % of a ray's cost, and the same float32 values."""
+        """ray_cast results of directions given by their coordinates (3 arrays of n), `per_origin` of them (counts)
+        from each of the origins (c, 3) in turn, lazily, looped in C by map(). Directions are read one coordinate at
+        a time through memoryviews, which make each float as the loop reaches it: 4 % of a bake's time less than
+        building lists of them first. Each origin is a Vector, which ray_cast reads with a copy where a tuple is
+        parsed float by float for every ray: 1.5 % of a ray's cost, and the same float32 values."""
         xs, ys, zs = map(memoryview, map(np.ascontiguousarray, coordinates))
         per_ray_origins = chain.from_iterable(map(repeat, map(self._vector, origins.tolist()), per_origin))
         return map(self.tree.ray_cast, per_ray_origins, zip(xs, ys, zs), repeat(self.max_distance))
@@ -249,9 +249,9 @@ class RayCaster:
     def touched_surfaces(self, surface, normals: np.ndarray, steps: np.ndarray):
         """(normals (c, 3), lying (c,) bool, ring (c, F)): the normal of the occluder face that each point faces most
         among those it touches (zero where there is none), whether it lies on a face it faces, and the occluder
-        triangles that meet its vertex (padded with −1). A point is judged a step into
-        its own faces, at `surface` (c, 3) + offset · `steps` (along the faces: a step tangent to a leaning normal
-        would dip under a floor the vertex rests on). It touches a face it faces, with that step on the face's
+        triangles that meet its vertex (padded with −1). A point is judged a step into its own faces, at `surface`
+        (c, 3) + offset · `steps` (along the faces: a step tangent to a leaning normal would dip under a floor the
+        vertex rests on). It touches a face it faces, with that step on the face's
         front side, that lies within one offset of the step (a fold of its own surface over it, a floor under it)
         or, unless the face meets the point's vertex (has a corner at its position), within TOUCH_REACH offsets of
         the vertex: a cone's apex (a sphere's pole on a floor) steps straight up, out of the floor's reach, and the
@@ -287,10 +287,10 @@ class RayCaster:
 
     def _near_vertices(self, surface):
         """Every occluder face within TOUCH_REACH offsets of each row's position (c, 3), one search per distinct
-        position: (row (P,), face (P,)) pairs, sorted by row, and per face found (F,): its nearest point (F, 3), normal
-        (F, 3), own (F,) bool (the face has a corner at the position) and triangle (F,). Nearest points are read only for faces not own (zero
-        for the own faces, which nothing measures from): most faces found are a vertex's own, and each value read
-        from a search costs a Python object."""
+        position: (row (P,), face (P,)) pairs, sorted by row, and per face found (F,): its nearest point (F, 3),
+        normal (F, 3), own (F,) bool (the face has a corner at the position) and triangle (F,). Nearest points are
+        read only for faces not own (zero for the own faces, which nothing measures from): most faces found are a
+        vertex's own, and each value read from a search costs a Python object."""
         # Rows at one position are one place; the order of places does not matter, since each row's faces are
         # listed in its place's search order.
         first, place_of_row = corners.unique_rows(surface)
@@ -356,9 +356,18 @@ def _padded_rows(rows, values, count):
     return padded
 
 
+def _by_ring_size(sets, ring):
+    """`sets` with each set of shared groups in order of its groups' ring sizes (`ring` (c, F), −1 padded): a round
+    tests a group's rays against as many triangles as the widest ring in its batch, so batches pad less. Each
+    group's estimate is its own: the order changes none."""
+    return [members[np.argsort(np.count_nonzero(ring[members[:, 0]] >= 0, axis=1), kind="stable")]
+            if members.shape[1] > 1 else members for members in sets]
+
+
 def _shared_ring_planes(caster, sets, origins, ring):
-    """The ring planes (RayCaster.ring_planes) of each shared ray group (k > 1), at its first row: (planes (c, 4F, 3),
-    zero elsewhere; triangles (c,) in each row's ring, zero elsewhere). None without a shared group with a ring."""
+    """The ring planes (RayCaster.ring_planes) of each shared ray group (k > 1), at its first row: (planes (c, 4F,
+    3), zero elsewhere; triangles (c,) in each row's ring, zero elsewhere). None without a shared group with a
+    ring."""
     heads = [members[:, 0] for members in sets if members.shape[1] > 1]
     if not heads or not ring.size:
         return None
@@ -434,21 +443,17 @@ def shadowed_chunk(caster: RayCaster, positions, normals, inward, keys, settings
     baked = np.flatnonzero(has_surface & ~skipped)
     if labels is not None:
         labels = _alone_unless_lifting(labels.copy(), baked, normals, touched)
-    sets = ray_sets(labels, baked)
     # A shadowed bake needs no hit but whether there is one: the rays of a shared group that surely cross a face
     # meeting at its vertex are known blocked without a cast, 8.6 % of the flat-shaded cow's rays. Not those of a
     # row casting alone: 1.3 % of the smooth cow's, which cost less to cast than to test. The interreflected bake
     # casts them, as it records where each ray hits.
-    if settings.mode != "interreflected":
-        # A round tests a group's rays against as many triangles as the widest ring in its batch: shared groups
-        # taken in order of their ring's size pad less (each group's estimate is its own: the order changes none).
-        sets = [members[np.argsort(np.count_nonzero(ring[members[:, 0]] >= 0, axis=1), kind="stable")]
-                if members.shape[1] > 1 else members for members in sets]
+    predicting = settings.mode != "interreflected"
+    sets = _by_ring_size(ray_sets(labels, baked), ring) if predicting else ray_sets(labels, baked)
     # per set: each group's lattice frames (g, 3, 3) and the floor of its cap (g,), None: a hemisphere
     caps = iter(_share_rays(sets, positions, normals, touched, origins, caster.offset))
     lattices = [(_frames(normals[members[:, 0]]), None) if members.shape[1] == 1 else next(caps) for members in sets]
     cones, flat_blocked = _flat_shadows(caster, origins, normals, order)
-    ring = _shared_ring_planes(caster, sets, origins, ring) if settings.mode != "interreflected" else None
+    ring = _shared_ring_planes(caster, sets, origins, ring) if predicting else None
     rounds = []  # (rows, rays per row, transfer mean, transfer variance), combined below
     hits = [] if settings.mode == "interreflected" else None  # (chunk row, triangle, barycentric, weight)
     plan = [(settings.points_per_replicate, members, lattice) for members, lattice in zip(sets, lattices)]
@@ -718,7 +723,7 @@ def _blocked_round(caster, origins, normals, lattice, unshadowed, flat, ring, se
     # planes are BLAS matrix products, 30× faster than einsum over the last axis of the (g, R, m, 3) view.
     coordinates = np.moveaxis(directions, -1, 0).reshape(3, groups, -1).transpose(1, 0, 2)
     live = None  # the rays to cast: every one
-    if size > 1:  # W/m = (n·ω)₊ / (π p(ω) m) = (n·(c·ω))₊ with c = 1/(π p m), p the cap's density (sampling.cap_weights)
+    if size > 1:  # W/m = (n·ω)₊/(π p(ω) m) = (n·(c·ω))₊ with c = 1/(π p m), p the cap's density (sampling.cap_weights)
         per_ray = np.matmul(lattice_frames[:, 2:].astype(dtype), coordinates)  # n̄·ω (g, 1, R·m)
         per_ray -= floor[:, None, None]
         sampling.cap_weights(per_ray, floor[:, None, None], 1.0 / per_replicate)
