@@ -356,18 +356,18 @@ def _padded_rows(rows, values, count):
     return padded
 
 
-def _by_ring_size(sets, ring):
-    """`sets` with each set of shared groups in order of its groups' ring sizes (`ring` (c, F), −1 padded): a round
+def _by_ring_size(sets, ring_sizes):
+    """`sets` with each set of shared groups in order of its groups' ring sizes (triangles per row (c,)): a round
     tests a group's rays against as many triangles as the widest ring in its batch, so batches pad less. Each
     group's estimate is its own: the order changes none."""
-    return [members[np.argsort(np.count_nonzero(ring[members[:, 0]] >= 0, axis=1), kind="stable")]
-            if members.shape[1] > 1 else members for members in sets]
+    return [members[np.argsort(ring_sizes[members[:, 0]], kind="stable")] if members.shape[1] > 1 else members
+            for members in sets]
 
 
-def _shared_ring_planes(caster, sets, origins, ring):
+def _shared_ring_planes(caster, sets, origins, ring, ring_sizes):
     """The ring planes (RayCaster.ring_planes) of each shared ray group (k > 1), at its first row: (planes (c, 4F,
-    3), zero elsewhere; triangles (c,) in each row's ring, zero elsewhere). None without a shared group with a
-    ring."""
+    3), zero elsewhere; its ring's triangles (c,), from `ring_sizes`, zero elsewhere). None without a shared group
+    with a ring."""
     heads = [members[:, 0] for members in sets if members.shape[1] > 1]
     if not heads or not ring.size:
         return None
@@ -375,16 +375,16 @@ def _shared_ring_planes(caster, sets, origins, ring):
     planes = np.zeros((len(ring), 4 * ring.shape[1], 3), dtype=np.float32)
     planes[heads] = caster.ring_planes(origins[heads], ring[heads])
     triangles = np.zeros(len(ring), dtype=np.int64)
-    triangles[heads] = np.count_nonzero(ring[heads] >= 0, axis=1)
+    triangles[heads] = ring_sizes[heads]
     return planes, triangles
 
 
-def _group_ring_planes(ring, heads):
-    """The ring planes of the groups whose first rows are `heads`, as wide as their widest ring; None if none has
-    one (or `ring` is None)."""
-    if ring is None:
+def _group_ring_planes(rings, heads):
+    """The ring planes of the groups whose first rows are `heads` (from `rings`, _shared_ring_planes'), as wide as
+    their widest ring; None if none has one (or `rings` is None)."""
+    if rings is None:
         return None
-    planes, triangles = ring
+    planes, triangles = rings
     width = triangles[heads].max()
     return planes[heads, :4 * width] if width else None
 
@@ -448,12 +448,13 @@ def shadowed_chunk(caster: RayCaster, positions, normals, inward, keys, settings
     # row casting alone: 1.3 % of the smooth cow's, which cost less to cast than to test. The interreflected bake
     # casts them, as it records where each ray hits.
     predicting = settings.mode != "interreflected"
-    sets = _by_ring_size(ray_sets(labels, baked), ring) if predicting else ray_sets(labels, baked)
+    ring_sizes = np.count_nonzero(ring >= 0, axis=1)
+    sets = _by_ring_size(ray_sets(labels, baked), ring_sizes) if predicting else ray_sets(labels, baked)
     # per set: each group's lattice frames (g, 3, 3) and the floor of its cap (g,), None: a hemisphere
     caps = iter(_share_rays(sets, positions, normals, touched, origins, caster.offset))
     lattices = [(_frames(normals[members[:, 0]]), None) if members.shape[1] == 1 else next(caps) for members in sets]
     cones, flat_blocked = _flat_shadows(caster, origins, normals, order)
-    ring = _shared_ring_planes(caster, sets, origins, ring) if predicting else None
+    rings = _shared_ring_planes(caster, sets, origins, ring, ring_sizes) if predicting else None
     rounds = []  # (rows, rays per row, transfer mean, transfer variance), combined below
     hits = [] if settings.mode == "interreflected" else None  # (chunk row, triangle, barycentric, weight)
     plan = [(settings.points_per_replicate, members, lattice) for members, lattice in zip(sets, lattices)]
@@ -482,7 +483,7 @@ def shadowed_chunk(caster: RayCaster, positions, normals, inward, keys, settings
                 flat = None if cones is None else (cones[groups[:, 0]], flat_blocked[groups])
                 mean, variance, round_hits, cast = _blocked_round(
                     caster, origins[groups[:, 0]], normals[groups], lattice, unshadowed[groups], flat,
-                    _group_ring_planes(ring, groups[:, 0]), settings)
+                    _group_ring_planes(rings, groups[:, 0]), settings)
                 rows = groups.ravel()
                 if hits is not None:
                     hits.append((rows[round_hits[0]], *round_hits[1:]))
@@ -683,7 +684,7 @@ def weight_dtype(size):
     return np.float64 if size == 1 else np.float32
 
 
-def _blocked_round(caster, origins, normals, lattice, unshadowed, flat, ring, settings):
+def _blocked_round(caster, origins, normals, lattice, unshadowed, flat, ring_planes, settings):
     """One round for g ray groups of k rows (origins (g, 3), the rest (g, k, ...)): each group casts R replicates of
     its own shifted lattice from its origin. `lattice`: each group's frames (g, 3, 3) and cap floor (g,) or None
     (see _caps), the lattice points (m, 2) and each group's shifts (g, R, 2). Returns the mean and variance over
@@ -699,7 +700,7 @@ def _blocked_round(caster, origins, normals, lattice, unshadowed, flat, ring, se
     visible fraction this round: β = 1 samples only blocked light (exact for an open vertex), β = 0 only visible light
     (exact for a buried one), in between it tracks the optimal coefficient.
     Rays are cast only where the answer is not known: one whose every weight is zero counts for nothing, and one that
-    surely crosses a triangle meeting at its group's vertex (`ring`: the group's planes, or None) is blocked.
+    surely crosses a triangle meeting at its group's vertex (`ring_planes`: the group's, or None) is blocked.
     Flat polygons (`flat`: each group's cone planes (g, P, m, 3), the same for its rows as they share their origin,
     and the transfer G they block for each row; None without any) are exact: a ray counts as blocked only for what
     they do not explain, 1 − V − g with g its hits on them, and G is subtracted; unbiased for any polygon, and P's
@@ -733,7 +734,7 @@ def _blocked_round(caster, origins, normals, lattice, unshadowed, flat, ring, se
         # A ray of the cap below every row's horizon weighs nothing in any estimate: it is not cast (1.6 % of the
         # flat-shaded cow's rays, nearly all of them hits, which cost the most).
         live = weights.reshape(groups, size, -1).max(axis=1) > 0.0
-    known = None if ring is None else _surely_hit(ring, coordinates.astype(np.float32, copy=False))  # blocked
+    known = None if ring_planes is None else _surely_hit(ring_planes, coordinates.astype(np.float32, copy=False))
     if known is not None:
         live = ~known if live is None else live & ~known
     cast_rays = np.full(groups, cast.shape[1]) if live is None else np.count_nonzero(live, axis=1)
