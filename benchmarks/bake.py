@@ -10,6 +10,7 @@ Run from the repository root:  .venv/bin/python benchmarks/bake.py [--quick] [--
 """
 
 import argparse
+import copy
 import gc
 from dataclasses import dataclass
 import json
@@ -45,12 +46,15 @@ class Config:
     max_samples: int         # ray budget per vertex of the target-error bake
     worker_samples: int      # rays per vertex of the workers benchmark
     worker_repeats: int      # alternations of 1 and 2 workers; median of the paired ratios
+    spin_iterations: int     # the machine check's fixed pure-Python work per process
 
 
 FULL = Config(cast_vertices=2048, cast_repeats=7, error_vertices=300, reference_samples=16384,
-              bake_objects=None, max_samples=16384, worker_samples=256, worker_repeats=5)
-QUICK = Config(cast_vertices=256, cast_repeats=2, error_vertices=48, reference_samples=2048,
-               bake_objects=["Floor"], max_samples=2048, worker_samples=64, worker_repeats=1)
+              bake_objects=None, max_samples=16384, worker_samples=256, worker_repeats=5,
+              spin_iterations=20_000_000)
+QUICK = Config(cast_vertices=128, cast_repeats=2, error_vertices=32, reference_samples=1024,
+               bake_objects=["Floor"], max_samples=512, worker_samples=32, worker_repeats=1,
+               spin_iterations=1_000_000)
 
 GOALS = {
     "ray_cast_efficiency": (">=", 0.85),
@@ -162,19 +166,21 @@ def bake_picks(receivers, occluders, picks, settings, workers=1):
 
 
 # -- 1. ray-cast efficiency -------------------------------------------------------------------------------
-class RecordingCaster:
-    """A RayCaster that keeps every ray the bake asks for, to replay them in a bare loop."""
+class RecordingTree:
+    """Stands in for the caster's BVHTree while a chunk is recorded: keeps every ray the caster casts through it,
+    whatever the caster's own methods take, and casts it."""
 
-    def __init__(self, caster):
-        self.caster = caster
-        self.batches = []
+    def __init__(self, tree):
+        self.tree = tree
+        self.origins, self.directions = [], []
 
     def __getattr__(self, name):
-        return getattr(self.caster, name)
+        return getattr(self.tree, name)
 
-    def occluded(self, origins, directions):
-        self.batches.append((origins.copy(), directions.copy()))
-        return self.caster.occluded(origins, directions)
+    def ray_cast(self, origin, direction, distance):
+        self.origins.append(list(origin))
+        self.directions.append(list(direction))
+        return self.tree.ray_cast(origin, direction, distance)
 
 
 def drain(work):
@@ -200,14 +206,10 @@ def cast_benchmark_receiver(receivers, count):
 
 def recorded_rays(caster, receiver, rows, settings):
     """The rays the bake of one chunk casts, as Python lists: one origin and one direction per ray."""
-    recorder = RecordingCaster(caster)
+    recorder = copy.copy(caster)
+    recorder.tree = RecordingTree(caster.tree)
     drain(bake.bake_chunk(recorder, receiver, rows, settings))
-    origins, directions = [], []
-    for batch_origins, batch_directions in recorder.batches:
-        for origin, rays in zip(batch_origins.tolist(), batch_directions.tolist()):
-            origins.extend([origin] * len(rays))
-            directions.extend(rays)
-    return origins, directions
+    return recorder.tree.origins, recorder.tree.directions
 
 
 def time_bare_loop(caster, origins, directions):
@@ -361,12 +363,13 @@ def bit_identical(a, b):
 
 # A fixed amount of pure-Python work, run alone and as two processes at once: what two processes can
 # gain on this machine right now (two free cores: the pair takes as long as one alone).
-CPU_SPIN = "x = 0\nfor i in range(20_000_000):\n    x += i\n"
+CPU_SPIN = "x = 0\nfor i in range({iterations}):\n    x += i\n"
 
 
-def cpu_spin_wall_s(processes):
+def cpu_spin_wall_s(processes, iterations):
     start = time.perf_counter()
-    spinners = [subprocess.Popen([sys.executable, "-c", CPU_SPIN]) for _ in range(processes)]
+    spinners = [subprocess.Popen([sys.executable, "-c", CPU_SPIN.format(iterations=iterations)])
+                for _ in range(processes)]
     for spinner in spinners:
         spinner.wait()
     return time.perf_counter() - start
@@ -377,7 +380,7 @@ def workers_benchmark(config):
     times, spins, results = {1: [], 2: []}, {1: [], 2: []}, {}
     for _ in range(config.worker_repeats):  # alternated, so all see the same machine load
         for workers in (1, 2):
-            spins[workers].append(cpu_spin_wall_s(workers))
+            spins[workers].append(cpu_spin_wall_s(workers, config.spin_iterations))
             wall, run = scene_bake(settings, config.bake_objects, workers)
             times[workers].append(wall)
             results.setdefault(workers, results_by_name(run))
