@@ -1,9 +1,22 @@
 """`python -m prt_addon <command> ...` with the bpy module."""
 
+import signal
 import sys
 
-import bpy  # noqa: F401  (must come before mathutils, which the core uses)
 
-from .commands.cli import main
+def hold_sigterm():
+    """Holds SIGTERM back (where the system can): it waits while the bpy module starts and while it ends, which
+    make and remove its blender_* temporary folder, so that a farm's SIGTERM cannot end the process between the
+    two. The command in between takes it as Ctrl+C (cli.terminated_as_interrupted)."""
+    if hasattr(signal, "pthread_sigmask"):
+        signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGTERM})
 
-sys.exit(main(sys.argv[1:]))
+
+hold_sigterm()
+import bpy  # noqa: F401,E402  (must come before mathutils, which the core uses)
+
+from .commands.cli import main  # noqa: E402
+
+code = main(sys.argv[1:])
+hold_sigterm()
+sys.exit(code)

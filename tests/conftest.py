@@ -5,6 +5,7 @@ import os
 import subprocess
 import sys
 import tempfile
+import time
 from pathlib import Path
 
 import pytest
@@ -148,6 +149,30 @@ def run_cli(*args, cwd=ROOT, timeout=600):
     env = dict(os.environ, PYTHONPATH=str(ROOT))
     return subprocess.run([sys.executable, "-m", "prt_addon", *map(str, args)], cwd=cwd, env=env,
                           capture_output=True, text=True, timeout=timeout)
+
+
+def start_cli(args, folder: Path, command=("-m", "prt_addon")) -> subprocess.Popen:
+    """`python -m prt_addon ARGS` started in the background, as a farm starts it, with a TMPDIR of its own
+    (folder/tmp, made here) and its stdout and stderr in folder/stdout.txt and folder/stderr.txt, which a test can
+    read while it runs. `command` replaces `-m prt_addon` (e.g. `-c SCRIPT`)."""
+    (folder / "tmp").mkdir()
+    env = dict(os.environ, PYTHONPATH=str(ROOT), TMPDIR=str(folder / "tmp"))
+    with open(folder / "stdout.txt", "w") as out, open(folder / "stderr.txt", "w") as errors:
+        return subprocess.Popen([sys.executable, *command, *map(str, args)], cwd=ROOT, env=env, stdout=out,
+                                stderr=errors)
+
+
+def wait_until(condition, what: str, process=None, timeout_s: float = 120.0):
+    """Polls `condition()` until it is truthy and returns it; fails after `timeout_s`, or as soon as `process`
+    has ended without it."""
+    deadline = time.monotonic() + timeout_s
+    while not (found := condition()):
+        if process is not None and process.poll() is not None:
+            raise AssertionError(f"the process ended (exit code {process.returncode}) before {what}")
+        if time.monotonic() > deadline:
+            raise AssertionError(f"no {what} after {timeout_s:.0f} s")
+        time.sleep(0.05)
+    return found
 
 
 @pytest.fixture

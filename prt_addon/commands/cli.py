@@ -1,8 +1,11 @@
 """One parser and one dispatch for `python -m prt_addon ...` (bpy module) and
 `blender --background [file.blend] --command prt ...` (a real Blender). Exit 0 on success, 1 with a one-line
-reason on failure."""
+reason on failure, 143 after SIGTERM."""
 
 import argparse
+from contextlib import contextmanager
+import os
+import signal
 import sys
 
 import bpy
@@ -12,6 +15,10 @@ from . import bake, demo, export, light_report, merge, relight, validate, view
 from .common import addon_registered
 
 COMMAND_ID = "prt"
+# SIGTERM's exit code, 128 + 15 as a shell reports a process SIGTERM ended. The command returns it rather than
+# dying by the signal again: only a normal exit runs Blender's own exit handler, which removes its blender_*
+# temporary folder.
+TERMINATED_EXIT_CODE = 128 + signal.SIGTERM
 COMMANDS = {getattr(module, "COMMAND", module.__name__.rsplit(".", 1)[-1]): module
             for module in (bake, merge, export, relight, validate, light_report, demo, view)}
 _cli_handle = None
@@ -31,16 +38,51 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+class Terminated(BaseException):
+    """SIGTERM arrived (a farm or service manager stopping the command). Raised in the main thread, like Ctrl+C's
+    KeyboardInterrupt, so that every `finally` and `with` on the way out runs: temporary folders are removed and
+    worker processes ended. Not an Exception, so that no `except Exception` takes it for a failure."""
+
+
+@contextmanager
+def terminated_as_interrupted():
+    """Within the block (entered in the main thread, the only one that can set a handler), SIGTERM raises
+    Terminated in the main thread. A second SIGTERM is ignored, so that it cannot cut the cleanup short. A forked
+    child (a bake worker, a Dask client) inherits the handler but not the block: SIGTERM ends it at once, as the
+    process it was forked from expects when it sends one."""
+    owner = os.getpid()
+
+    def raise_terminated(signum, frame):
+        if os.getpid() != owner:
+            signal.signal(signum, signal.SIG_DFL)
+            os.kill(os.getpid(), signum)
+            return
+        signal.signal(signum, signal.SIG_IGN)
+        raise Terminated()
+
+    previous = signal.signal(signal.SIGTERM, raise_terminated)
+    if hasattr(signal, "pthread_sigmask"):  # one held back while Blender started (__main__) is taken now
+        signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGTERM})
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
 def main(argv, in_blender: bool = False) -> int:
     try:
-        args = build_parser().parse_args(argv)
-        with addon_registered():
-            return COMMANDS[args.command].run(args, in_blender)
+        with terminated_as_interrupted():
+            args = build_parser().parse_args(argv)
+            with addon_registered():
+                return COMMANDS[args.command].run(args, in_blender)
     except SystemExit as leaving:  # --help
         return int(leaving.code or 0)
     except KeyboardInterrupt:  # Ctrl+C or a farm's SIGINT: nothing is saved before the work is done
         print("prt: error: cancelled; nothing was written", file=sys.stderr)
         return 1
+    except Terminated:  # a farm's SIGTERM: the same way out as Ctrl+C's, with its own exit code
+        print("prt: error: terminated (SIGTERM); nothing was written", file=sys.stderr)
+        return TERMINATED_EXIT_CODE
     except InputError as failure:
         print(f"prt: error: {failure}", file=sys.stderr)
         return 1

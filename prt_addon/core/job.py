@@ -236,7 +236,7 @@ class TransferJob(Job):
                             out_file + ".failed", shared_queue)
                     else:
                         started = SpawnedWorker(job_file.worker_process_command(self.worker_command, saved_job,
-                                                                                out_file, theirs))
+                                                                                out_file, theirs), folder)
                     workers.append((started, out_file))
                 # Reader threads start after the last fork: a child has none of our threads, and a lock one of them
                 # held at the fork would stay locked in the child forever

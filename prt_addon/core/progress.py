@@ -96,11 +96,16 @@ class Job:
     @old_objects_frozen()
     def run(self, log=None, budget_s: float = 0.5, every: float = 0.05):
         """Steps to the end, with `log(line)` of the progress and time left every `every` of the work and at the
-        end; returns the outcome."""
+        end; returns the outcome. Anything that stops it on the way (an error, Ctrl+C, SIGTERM) cancels it first,
+        so its worker processes and temporary files are gone before the caller hears of it."""
         throttle = LogThrottle(every)
-        while not self.step(budget_s):
-            if log and throttle.due(self.progress.fraction):
-                log(self.progress.line())
+        try:
+            while not self.step(budget_s):
+                if log and throttle.due(self.progress.fraction):
+                    log(self.progress.line())
+        except BaseException:
+            self.cancel()
+            raise
         if log:
             log(self.progress.line())
         return self.outcome()

@@ -56,17 +56,21 @@ def read_lines(stream, lines: queue.Queue):
     lines.put(None)
 
 
-def _worker_environment():
-    # One BLAS thread per worker: the workers are the parallelism.
-    return dict(os.environ, OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1", MKL_NUM_THREADS="1")
+def _worker_environment(temporary_folder):
+    """One BLAS thread per worker (the workers are the parallelism), and the bake's temporary folder as the
+    worker's: the Blender it imports makes its own blender_* folder there, which a killed worker cannot remove
+    and the bake removes with the folder."""
+    return dict(os.environ, OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1", MKL_NUM_THREADS="1",
+                TMPDIR=temporary_folder, TEMP=temporary_folder, TMP=temporary_folder)
 
 
 class SpawnedWorker:
-    """A new process running `command`; its progress lines come on stdout, a failure's message on stderr."""
+    """A new process running `command`, its temporary files in `temporary_folder`; its progress lines come on
+    stdout, a failure's message on stderr."""
 
-    def __init__(self, command):
+    def __init__(self, command, temporary_folder):
         self.process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                                        env=_worker_environment())
+                                        env=_worker_environment(temporary_folder))
         self.stdout = self.process.stdout
 
     def finish(self) -> str | None:
