@@ -9,16 +9,20 @@ import functools
 import hashlib
 import json
 import os
+import resource
 import shlex
 import shutil
+import stat
 import subprocess
 import sys
+import tempfile
 from pathlib import Path
 
 import bpy
 import numpy as np
 import pytest
 
+import hostile_parts
 from conftest import ROOT, run_cli
 from test_bake_blender import box, grid
 from test_interreflect_blender import coloured, wall
@@ -119,12 +123,17 @@ def shard_and_merge(scene, folder: Path, shards: int, options, merge_report=None
     return out, parts
 
 
+def description(path) -> dict:
+    with np.load(path) as data:
+        return json.loads(str(data["part"]))
+
+
 def part_arrays(path) -> dict:
     """A part's arrays and description, without the seconds it took."""
     with np.load(path) as data:
         arrays = {name: data[name].tobytes() for name in data.files if name != "part"}
         info = json.loads(str(data["part"]))
-    return arrays, {key: value for key, value in info.items() if key not in ("time_s", "cpu_s")}
+    return arrays, {key: value for key, value in info.items() if key not in ("time_s", "cpu_s", "rays_s")}
 
 
 # -- shards and merge ----------------------------------------------------------------------------------------------
@@ -157,6 +166,14 @@ def test_merged_shards_are_bit_identical_to_one_bake_and_a_retried_shard_writes_
                 "per_object", "bounces", "bounce_relative_changes", "subsurface_objects"):
         assert merged_report[key] == one_report[key], key
     assert 0 < merged_report["phases_s"]["shards_s"] < merged_report["time_s"]  # the shards' seconds and the merge's
+    # Its rays per second are over the shards' seconds baking (and its own), its workers theirs in all.
+    infos = [description(part) for part in parts]
+    assert merged_report["workers"] == sum(info["workers"] for info in infos) == 4 * one_report["workers"]
+    assert merged_report["phases_s"]["shards_rays_s"] == pytest.approx(sum(info["rays_s"] for info in infos))
+    assert merged_report["rays_per_s"] <= merged_report["rays"] / merged_report["phases_s"]["shards_rays_s"]
+    umask = os.umask(0)
+    os.umask(umask)
+    assert {stat.S_IMODE(part.stat().st_mode) for part in parts} == {0o666 & ~umask}  # as any new file's
     first = part_arrays(parts[1])
     ok(run_cli("bake", scenes["room"], "--shard", "2/4", "--out", parts[1], *options))
     assert part_arrays(parts[1]) == first
@@ -250,6 +267,78 @@ def test_bad_shards_exit_1_with_one_line_and_write_no_part(addon, scenes, tmp_pa
     # A shard that fails (here: no such file) exits non-zero, so the farm retries it.
     refused(run_cli("bake", tmp_path / "missing.blend", "--shard", "1/2", "--out", part), "no such file",
             nothing_at=[part])
+
+
+def hostile_part(good: Path, path: Path, **arrays) -> Path:
+    """A copy of the part `good` with these arrays replaced (its description: `part`)."""
+    with np.load(good) as data:
+        members = {name: data[name] for name in data.files}
+    np.savez(path, **{**members, **arrays})
+    return path
+
+
+def merge_measured(*args, limit=4 << 30):
+    """`prt merge ...` in a new process whose address space is limited to `limit` bytes (a runaway merge fails
+    there instead of taking the machine's memory): its result and its peak resident memory in bytes."""
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    with tempfile.TemporaryFile("w+") as out, tempfile.TemporaryFile("w+") as err:
+        process = subprocess.Popen(
+            [sys.executable, "-m", "prt_addon", "merge", *map(str, args)], cwd=ROOT, env=env, stdout=out,
+            stderr=err, preexec_fn=lambda: resource.setrlimit(resource.RLIMIT_AS, (limit, limit)))
+        _, status, usage = os.wait4(process.pid, 0)
+        process.returncode = os.waitstatus_to_exitcode(status)
+        out.seek(0)
+        err.seek(0)
+        return subprocess.CompletedProcess(process.args, process.returncode, out.read(), err.read()), \
+            usage.ru_maxrss * 1024
+
+
+def test_merge_refuses_a_part_with_nan_or_negative_values_naming_it_and_writes_nothing(
+        scenes, shadowed_parts, tmp_path):
+    first, second, third = shadowed_parts
+    out = tmp_path / "out.blend"
+    with np.load(second) as data:
+        transfer, error = data["transfer_0"].copy(), data["std_error_1"]
+    transfer[5, 0] = np.nan
+    nan = hostile_part(second, tmp_path / "nan.npz", transfer_0=transfer)
+    refused(run_cli("merge", scenes["room"], first, nan, third, "--output", out),
+            f"{nan} has NaN or infinite values in transfer_0", nothing_at=[out])
+    negative = hostile_part(second, tmp_path / "negative.npz", std_error_1=-error - 1e-3)
+    refused(run_cli("merge", scenes["room"], first, negative, third, "--output", out),
+            f"{negative} has NaN, infinite or negative values in std_error_1", nothing_at=[out])
+
+
+def test_merge_refuses_a_billion_shards_and_a_zip_bomb_naming_the_part_in_bounded_memory(
+        scenes, shadowed_parts, tmp_path):
+    first, second, third = shadowed_parts
+    out = tmp_path / "out.blend"
+    billion = hostile_part(first, tmp_path / "billion.npz",
+                           part=np.array(json.dumps({**description(first), "shards": 10 ** 9})))
+    result, peak = merge_measured(scenes["room"], billion, "--output", out)
+    refused(result, "missing shards 2/1000000000, 3/1000000000,", f"and 999999991 more (N = 1000000000 in {billion})",
+            nothing_at=[out])
+    assert peak < 1 << 30, peak
+    bomb = tmp_path / "bomb.npz"  # 1.1 MB, of which transfer_0.npy deflates to 1 GiB
+    bomb.write_bytes(hostile_parts.with_bomb(second.read_bytes(), "transfer_0"))
+    result, peak = merge_measured(scenes["room"], first, bomb, third, "--output", out)
+    refused(result, f"{bomb} holds transfer_0.npy of 1073741952 bytes, more than the scene's chunk has",
+            nothing_at=[out])
+    assert peak < 1 << 30, peak
+
+
+def test_merge_refuses_truncated_empty_and_misshaped_parts_naming_them(scenes, shadowed_parts, tmp_path):
+    first, second, third = shadowed_parts
+    out = tmp_path / "out.blend"
+    truncated, empty = tmp_path / "truncated.npz", tmp_path / "empty.npz"
+    truncated.write_bytes(second.read_bytes()[:-100])
+    empty.write_bytes(b"")
+    with np.load(second) as data:
+        misshaped = hostile_part(second, tmp_path / "misshaped.npz", transfer_0=data["transfer_0"][:, :4])
+    for part, words in [(truncated, "is not a readable PRT part file (BadZipFile: "),
+                        (empty, "is not a readable PRT part file (BadZipFile: "),
+                        (misshaped, "holds transfer_0.npy of shape (128, 4), not (128, 9) as the scene's chunk")]:
+        refused(run_cli("merge", scenes["room"], first, part, third, "--output", out), f"{part} {words}",
+                nothing_at=[out])
 
 
 # -- Flamenco ------------------------------------------------------------------------------------------------------

@@ -6,7 +6,7 @@ import os
 
 import bpy
 
-from ..core import shards
+from ..core import part_file, shards
 from ..core.bake import BakeSettings
 from ..core.errors import InputError
 from .scene_bake import SceneBake
@@ -27,6 +27,7 @@ def bake_share(scene_bake: SceneBake, shard, out: str, stopwatch: shards.Stopwat
     results, probe_results = scene_bake.job.shard_results, scene_bake.probe_job.shard_results
     info = part_info(scene_bake, shard)
     info.rays = int(sum(int(result.rays.sum()) for result in [*results.values(), *probe_results.values()]))
+    info.rays_s, info.workers = scene_bake.levels.progress.elapsed, scene_bake.job.workers
     shards.write_part(out, info, results, probe_results, stopwatch)
     return info
 
@@ -34,20 +35,24 @@ def bake_share(scene_bake: SceneBake, shard, out: str, stopwatch: shards.Stopwat
 def merge_parts(context, paths, log=None, scene_bake: SceneBake | None = None) -> SceneBake:
     """Merges the part files (or every part in a folder given) into the scene as one bake (stored, not saved), into
     `scene_bake` where the scene was gathered for them already (a farm bake, `farm`). Refuses, before changing
-    anything, parts from another scene or selection, stale ones, duplicates and missing shards, naming them all."""
+    anything, parts from another scene or selection, stale ones, duplicates and missing shards, naming them all,
+    then a part whose arrays are not the scene's or hold values no bake makes, naming it (core.part_file)."""
     if not paths:
         raise InputError("no part files to merge")
-    parts = [(path, *shards.read_part(path)) for path in shards.part_paths(paths)]
-    chosen = shards.chosen_bake([info for _, info, _ in parts])
+    parts = [(path, part_file.read_part(path)) for path in shards.part_paths(paths)]
+    chosen = shards.chosen_bake([info for _, info in parts])
     if scene_bake is None:
         scene_bake = SceneBake(context, BakeSettings(**chosen.settings), chosen.receivers, farm=True)
     problems = shards.refusals(parts, part_info(scene_bake, (0, chosen.shards)))
     if problems:
         raise InputError("cannot merge: " + "; ".join(problems) + "; nothing was written")
-    scene_bake.job.take_parts((result for path, _, _ in parts for result in shards.load_chunks(path)),
-                              sum(info.time_s for _, info, _ in parts))
-    scene_bake.probe_job.take_parts(result for path, _, _ in parts
-                                    for result in shards.load_chunks(path, shards.PROBES))
+    shape = part_file.PartShape.of(scene_bake.job, scene_bake.probe_job)
+    loaded = [part_file.load_part(path, info, shape) for path, info in parts]
+    infos = [info for _, info in parts]
+    scene_bake.job.take_parts((result for chunks, _ in loaded for result in chunks),
+                              sum(info.time_s for info in infos), sum(info.rays_s for info in infos),
+                              sum(info.workers for info in infos))
+    scene_bake.probe_job.take_parts(result for _, probes in loaded for result in probes)
     scene_bake.run(log=log)
     return scene_bake
 

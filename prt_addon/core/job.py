@@ -122,6 +122,7 @@ class TransferJob(Job):
         self.bounce_report = None
         self.direct = None  # interreflected: each receiver's transfer before the bounces, once they have run
         self.phase_times = {}
+        self.shards_workers = 0  # a merge of farm shards: the processes their bakes asked for (take_parts)
         self._runner = None
         self.finished = False
 
@@ -184,10 +185,15 @@ class TransferJob(Job):
         for chunk_index in self.baked_chunks:
             yield from self._bake_chunk_here(caster, chunk_index)
 
-    def take_parts(self, chunk_results, shards_time_s: float = 0.0):
-        """Merges farm shards: every chunk's result comes from their parts instead of being baked here (their bakes
-        took `shards_time_s` in all); step() then bounces interreflections as after a bake."""
+    def take_parts(self, chunk_results, shards_time_s: float = 0.0, shards_rays_s: float = 0.0,
+                   shards_workers: int = 0):
+        """Merges farm shards: every chunk's result comes from their parts instead of being baked here; step() then
+        bounces interreflections as after a bake. Their bake commands took `shards_time_s` in all, their bakes
+        `shards_rays_s` (the span a one-process bake's rays per second are over), with `shards_workers` processes
+        in all: the summary's rays per second and workers are theirs."""
         self.phase_times["shards_s"] = shards_time_s
+        self.phase_times["shards_rays_s"] = shards_rays_s
+        self.shards_workers = shards_workers
         self._runner = self._store_parts(chunk_results)
 
     def _store_parts(self, chunk_results):
@@ -330,10 +336,12 @@ class TransferJob(Job):
         return out
 
     def summary(self, results: list[ReceiverResult], receivers=None, elapsed: float | None = None) -> Summary:
-        """receivers, elapsed: others than this job's (a texel bake's refinement runs several jobs)."""
+        """receivers, elapsed: others than this job's (a texel bake's refinement runs several jobs); a merge's
+        time adds its shards' commands' seconds (take_parts)."""
         receivers = receivers or self.receivers
-        if elapsed is None:
-            elapsed = self.progress.elapsed + self.phase_times.get("shards_s", 0.0)
+        own_s = self.progress.elapsed if elapsed is None else elapsed
+        # A merge's rays were cast by its shards: its rate is over their seconds baking and its own (the bounces).
+        baking_s = own_s + self.phase_times.get("shards_rays_s", 0.0)
         rel = np.concatenate([r.rel_error for r in results]) if results else np.zeros(0)
         rays = int(sum(int(r.rays.sum()) for r in results))
         per_object = {
@@ -351,9 +359,10 @@ class TransferJob(Job):
             mode=self.settings.mode,
             samples=self.settings.samples, rays=rays,
             skipped_vertices=int(sum(int(r.skipped.sum()) for r in results)),
-            time_s=elapsed, rays_per_s=rays / elapsed if elapsed > 0 else 0.0,
+            time_s=own_s + self.phase_times.get("shards_s", 0.0),
+            rays_per_s=rays / baking_s if baking_s > 0 else 0.0,
             est_rms_rel_error=rms(rel), est_max_rel_error=float(rel.max(initial=0.0)),
-            workers=self.workers, target_error=self.settings.target_error, per_object=per_object,
+            workers=self.shards_workers or self.workers, target_error=self.settings.target_error, per_object=per_object,
             phases_s=dict(self.phase_times),
             bounces=self.bounce_report.bounces if self.bounce_report else None,
             bounce_relative_changes=list(self.bounce_report.relative_changes) if self.bounce_report else [],

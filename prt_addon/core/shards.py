@@ -6,26 +6,28 @@ chunk's result where a one-process bake does, and bounces interreflections from 
 A part file is an .npz: its chunks' results as job_file saves a worker's (transfer, standard error, rays, which
 vertices were exact without rays, and in interreflected bakes the blocked rays' hit records), and `part`, a JSON
 string (PartInfo): the shard K/N, the bake's number of chunks, the scene file's name, the solved surfaces and the
-receivers, the settings, each receiver's fingerprint, and the shard's seconds (wall and CPU) and rays.
+receivers, the settings, each receiver's fingerprint, the shard's seconds (wall and CPU), rays, seconds baking and
+workers. A part is read as untrusted input (core.part_file).
 """
 
 from collections import Counter
 from dataclasses import asdict, dataclass, field
+from itertools import islice
 import json
 import os
-import tempfile
 import time
+import uuid
 import zipfile
 
 import numpy as np
 
 from . import fingerprint, job_file
 from .errors import InputError
-from .workers import shard_chunks
 
-# Also names how chunks are cut: 4 parts a split vertex's points about their mean normal, 5 gives chunks of shared
-# ray groups twice the groups (bake.SHARED_CHUNK_FACTOR).
-PART_FORMAT = "prt-part-5"
+# Also names how chunks are cut and what the description holds: 4 parts a split vertex's points about their mean
+# normal, 5 gives chunks of shared ray groups twice the groups (bake.SHARED_CHUNK_FACTOR), 6 has each shard's
+# seconds baking and workers (rays_s, workers: a merged bake's rays per second).
+PART_FORMAT = "prt-part-6"
 PROBES = "probe_"  # the prefix of the probes' arrays
 
 
@@ -42,7 +44,9 @@ class PartInfo:
     fingerprints: dict     # receiver → part → digest (blender.fingerprint)
     time_s: float = 0.0    # the bake command's seconds, from its start to the part written (Stopwatch)
     cpu_s: float = 0.0     # the same span's CPU seconds: this process and its workers
-    rays: int = 0
+    rays: int = 0          # the vertices' and the probes'
+    rays_s: float = 0.0    # seconds baking: the span a one-process bake's rays per second are over (its job's)
+    workers: int = 1       # the processes the shard's bake asked for, as a one-process bake's report counts them
 
     def same_bake(self) -> tuple:
         """What must match between parts of one bake, and the scene they are merged into, besides shard K."""
@@ -80,10 +84,13 @@ class Stopwatch:
 def write_part(path: str, info: PartInfo, chunk_results, probe_results, stopwatch: Stopwatch) -> None:
     """Writes the part atomically (a temporary file in the same folder, renamed over `path`), creating the folder:
     a farm that kills a shard midway, or retries it, never leaves half a part. The chunks' arrays go first and
-    the description last, so its seconds (info.time_s, cpu_s, read from `stopwatch`) include writing them."""
+    the description last, so its seconds (info.time_s, cpu_s, read from `stopwatch`) include writing them. The
+    file gets the mode any new file gets (0666 less the umask), so a merge run as another user on shared storage
+    reads it."""
     folder = os.path.dirname(os.path.abspath(path))
     os.makedirs(folder, exist_ok=True)
-    handle, temporary = tempfile.mkstemp(prefix=".prt_part_", suffix=".partial", dir=folder)
+    temporary = os.path.join(folder, f".prt_part_{uuid.uuid4().hex}.partial")
+    handle = os.open(temporary, os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_BINARY", 0), 0o666)
     try:
         with os.fdopen(handle, "wb") as out, zipfile.ZipFile(out, "w") as archive:  # np.savez's layout
             arrays = {**job_file.result_arrays(sorted(chunk_results.items())),
@@ -117,26 +124,6 @@ def part_paths(given) -> list[str]:
     return paths
 
 
-def read_part(path: str) -> tuple[PartInfo, tuple[list[int], list[int]]]:
-    """A part's description and the chunks it holds: the vertices', and the probes'."""
-    try:
-        with np.load(path) as data:
-            meta = json.loads(str(data["part"]))
-            chunks = tuple([int(index) for index in data[prefix + "chunks"]] for prefix in ("", PROBES))
-    except FileNotFoundError:
-        raise InputError(f"no such part file: {path}") from None
-    except (OSError, ValueError, KeyError):
-        raise InputError(f"{path} is not a PRT part file (written by prt bake --shard)") from None
-    if meta.pop("format", None) != PART_FORMAT:
-        raise InputError(f"{path} is a part file of another format than {PART_FORMAT}")
-    return PartInfo(**meta), chunks
-
-
-def load_chunks(path: str, prefix: str = ""):
-    """(chunk index, ChunkResult) for every chunk the part holds (the probes' with prefix PROBES)."""
-    return job_file.load_results(path, prefix)
-
-
 def chosen_bake(infos: list[PartInfo]) -> PartInfo:
     """The bake most parts belong to: its settings and receivers are what the merge bakes."""
     counts = Counter(json.dumps(info.same_bake(), sort_keys=True) for info in infos)
@@ -144,37 +131,58 @@ def chosen_bake(infos: list[PartInfo]) -> PartInfo:
     return next(info for info in infos if json.dumps(info.same_bake(), sort_keys=True) == wanted)
 
 
-def refusals(parts: list[tuple[str, PartInfo, tuple[list[int], list[int]]]], current: PartInfo) -> list[str]:
-    """Why these parts (path, description, chunks) do not make the bake of `current` (the scene as it is now, the chosen bake's
-    settings): each foreign, stale, misnumbered or duplicate part and each missing shard, by name. [] when they
-    cover every chunk exactly once."""
+def refusals(parts: list[tuple[str, PartInfo]], current: PartInfo) -> list[str]:
+    """Why these parts (path, description) do not make the bake of `current` (the scene as it is now, the chosen
+    bake's settings): each foreign, stale, misnumbered or duplicate part and each missing shard, by name. [] when
+    there is one part of each shard; what each holds is checked as it is read (part_file.load_part)."""
     found, good = [], {}
-    for path, info, chunks in parts:
-        problem = _part_problem(info, chunks, current)
+    for path, info in parts:
+        problem = _part_problem(info, current)
         if problem:
             found.append(f"{path} {problem}")
         else:
             good.setdefault(info.shard, []).append(path)
     found += [f"duplicate shard {shard}/{current.shards}: {', '.join(paths)}"
               for shard, paths in sorted(good.items()) if len(paths) > 1]
-    missing = [f"{shard}/{current.shards}" for shard in range(1, current.shards + 1) if shard not in good]
+    missing = _missing_shards(set(good), current.shards, [path for paths in good.values() for path in paths])
     if missing:
-        found.append(f"missing shard{'s' if len(missing) > 1 else ''} {', '.join(missing)}")
+        found.append(missing)
     return found
 
 
-def _part_problem(info: PartInfo, chunks: tuple[list[int], list[int]], current: PartInfo) -> str | None:
+def _missing_shards(present: set, shards: int, claiming: list[str], listed: int = 8) -> str | None:
+    """'missing shards 2/9, 5/9' for the shards of 1..N not `present` (a subset of them). N comes from the parts
+    (`claiming`: those of N shards), and may be any number: past `listed` shards, the rest are counted and the
+    parts that say N named."""
+    count = shards - len(present)
+    if not count:
+        return None
+    first = list(islice((shard for shard in range(1, shards + 1) if shard not in present), listed))
+    named = ", ".join(f"{shard}/{shards}" for shard in first)
+    if count > len(first):
+        others = f" and {len(claiming) - 1} other part{'s' if len(claiming) > 2 else ''}" if len(claiming) > 1 else ""
+        named += f" and {count - len(first)} more (N = {shards} in {claiming[0] if claiming else 'the parts'}{others})"
+    return f"missing shard{'s' if count > 1 else ''} {named}"
+
+
+def _part_problem(info: PartInfo, current: PartInfo) -> str | None:
     if not 1 <= info.shard <= info.shards:
         return f"is shard {info.shard}/{info.shards}: K must be from 1 to N"
     if (info.receivers, info.surfaces, info.chunks, info.probe_chunks) != (
             current.receivers, current.surfaces, current.chunks, current.probe_chunks):
-        return f"is from another scene or selection ({info.scene}: {', '.join(info.receivers)})"
+        return (f"is from another scene or selection ({shown(info.scene)}: "
+                f"{', '.join(map(shown, info.receivers[:8]))}{', ...' if len(info.receivers) > 8 else ''})")
     changed = sorted({word for name, stored in info.fingerprints.items()
                       for word in fingerprint.changes(stored, current.fingerprints[name])})
     if changed:
         return f"is stale ({', '.join(changed)} since it was baked)"
     if info.shards != current.shards:
         return f"is shard {info.shard}/{info.shards}, the others are of {current.shards}"
-    if chunks != tuple(shard_chunks(total, info.shard, info.shards) for total in (info.chunks, info.probe_chunks)):
-        return f"does not hold shard {info.shard}/{info.shards}'s chunks"
     return None
+
+
+def shown(text: str, most: int = 60) -> str:
+    """A name read from a part, as a refusal tells it: on one line (control characters as '?'), at most `most`
+    characters."""
+    text = "".join(character if character.isprintable() else "?" for character in text[: most + 1])
+    return text if len(text) <= most else text[: most - 1] + "…"
