@@ -66,6 +66,7 @@ class _Refused(Exception):
 
 
 def _check(holds: bool, problem: str):
+    """Refuses the part with `problem` unless `holds`."""
     if not holds:
         raise _Refused(problem)
 
@@ -88,6 +89,8 @@ def read_part(path: str) -> PartInfo:
     """A part's description, every field of the type and range a shard writes; what the part holds is read by
     load_part, once the scene says how much it may be."""
     with _refusing(path), zipfile.ZipFile(path) as archive:
+        _check("part.npy" in archive.namelist(), "is not a PRT part file (written by prt bake --shard): it holds no "
+                                                 "description")
         text = _read(archive, "part", _description_header, DESCRIPTION_CHARS * 4)
         return _info(json.loads(str(text[()])))
 
@@ -111,12 +114,15 @@ def load_part(path: str, info: PartInfo, shape: PartShape) -> tuple[list, list]:
 # -- the description -----------------------------------------------------------------------------------------------
 
 def _description_header(shape, dtype) -> str | None:
+    """A header check: the description is one string of at most DESCRIPTION_CHARS characters."""
     if shape != () or dtype.kind != "U" or dtype.itemsize > 4 * DESCRIPTION_CHARS:
-        return f"is not a PRT part file (its description is {dtype} {shape}, not a string)"
+        return f"of {dtype} {shape}, not a description (a string of at most {DESCRIPTION_CHARS} characters)"
     return None
 
 
 def _info(meta) -> PartInfo:
+    """The description read from JSON, or refused: this format, PartInfo's fields each of its type and range, the
+    settings a bake takes, a fingerprint of every receiver."""
     _check(isinstance(meta, dict), "is not a PRT part file (its description is not a JSON object)")
     _check(meta.get("format") == PART_FORMAT, f"is a part file of another format than {PART_FORMAT}")
     kinds = {field.name: field.type for field in fields(PartInfo)}
@@ -176,6 +182,7 @@ def _member_names(shares, shape: PartShape) -> set[str]:
 
 
 def _members(archive: zipfile.ZipFile, wanted: set[str]):
+    """Refuses an archive that does not hold exactly the members `wanted`, each once."""
     names = archive.namelist()
     _check(len(names) == len(set(names)), "holds an entry twice")
     extra, missing = sorted(set(names) - wanted), sorted(wanted - set(names))

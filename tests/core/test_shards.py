@@ -74,9 +74,12 @@ def test_a_part_is_written_atomically_into_a_new_folder_with_the_umasks_mode_and
 def test_what_is_not_a_part_is_refused_by_name(tmp_path):
     other = tmp_path / "other.npz"
     np.savez(other, x=np.zeros(2))
-    for path in (other, tmp_path / "missing.npz"):
-        with pytest.raises(InputError, match=str(path)):
+    missing = tmp_path / "missing.npz"
+    for path, told in [(other, f"{other} is not a PRT part file (written by prt bake --shard): it holds no "
+                               f"description"), (missing, f"no such part file: {missing}")]:
+        with pytest.raises(InputError) as refused:
             part_file.read_part(str(path))
+        assert str(refused.value) == told
 
 
 def test_parts_that_make_the_bake_are_not_refused():
