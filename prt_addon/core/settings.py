@@ -9,6 +9,7 @@ MAX_ORDER = 16
 FEWEST_SAMPLES = 8
 MOST_SAMPLES = 1 << 20
 MAX_WORKERS = 64
+MAX_SEED = (1 << 31) - 1  # the largest a Blender IntProperty holds, so panel and command line agree
 
 
 @dataclass(frozen=True)
@@ -51,7 +52,8 @@ TARGET_ERROR = Setting("target_error", "Target Error",
                        0.0, 0.0, 1.0)
 MAX_SAMPLES = Setting("max_samples", "Max Samples", "Ray budget per vertex when a target error is set",
                       16384, FEWEST_SAMPLES, MOST_SAMPLES)
-SEED = Setting("seed", "Seed", "Random seed: the same seed gives the same bake", 0, 0)
+SEED = Setting("seed", "Seed", "Random seed: the same seed gives the same bake", 0, 0,
+               MAX_SEED)
 BOUNCES = Setting("bounces", "Bounces", "Interreflection bounces; auto: until the rest of the series is below the "
                   "tolerance", 2, 0, 1000, auto=True)
 BOUNCE_TOLERANCE = Setting("bounce_tolerance", "Tolerance", "Relative error that auto bounces may leave out",
