@@ -376,9 +376,9 @@ def test_clearing_the_bake_of_a_saved_shown_file_brings_the_originals_back(plane
 
 
 def test_a_file_that_lost_the_originals_gets_a_note_not_a_crash(plane, prt, tmp_path, capsys):
-    """A file whose record names a material it does not hold (saved while the record held names only and nothing
-    else used the material): the display goes off with a note naming object and material, the slot left empty; a
-    record naming a material the file holds still brings it back."""
+    """A file whose record names a material it does not hold (a record of names keeps no material in the file):
+    the export warns, naming object and material; the display goes off with the same note, that slot left empty; a
+    record naming a material the file holds brings it back."""
     plane.data.materials.append(bpy.data.materials.new("Own"))
     bare = bpy.data.objects.new("Kept", plane.data.copy())
     bpy.context.scene.collection.objects.link(bare)
