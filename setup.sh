@@ -4,9 +4,11 @@
 #     installed only when missing;
 #   - a virtual environment with the bpy module of the newest supported Blender this machine can run (the newest
 #     one whose Python is found), numpy and the test tools; it says which it installed;
+#   - this checkout as a package of that environment (pyproject.toml, editable: the environment runs the checkout as
+#     it is), which gives the `prt` command and `python -m prt_addon` in any folder;
 #   - the sample scenes, built in that Blender's file format (sample_scenes/make_scenes.py);
 #   - the browser viewer's three.js (npm install in viewer/) and Debian's chromium, which its tests drive;
-#   - `python -m prt_addon demo`, which writes a PNG and a JSON report into demo_output/.
+#   - `prt demo`, which writes a PNG and a JSON report into demo_output/.
 # Options:
 #   --blender X.Y   that Blender instead (one of the supported versions below)
 #   --venv DIR      the virtual environment's folder (default .venv)
@@ -87,6 +89,7 @@ if [ ! -x "$venv/bin/python" ]; then
 fi
 "$venv/bin/python" -m pip install -q --upgrade pip
 "$venv/bin/python" -m pip install -q "bpy==$bpy_version" -r requirements-dev.txt
+"$venv/bin/python" -m pip install -q -e .
 echo "setup: installed Blender $("$venv/bin/python" -c 'import bpy; print(bpy.app.version_string)') (bpy $bpy_version) on Python $("$venv/bin/python" -c 'import platform; print(platform.python_version())') in $venv"
 
 "$venv/bin/python" sample_scenes/make_scenes.py
@@ -105,5 +108,5 @@ fi
 (cd viewer && npm install --no-audit --no-fund --silent)
 
 if [ "$demo" = 1 ]; then
-  "$venv/bin/python" -m prt_addon demo --output demo_output
+  "$venv/bin/prt" demo --output demo_output
 fi

@@ -1,4 +1,5 @@
-"""`python -m prt_addon <command> ...` with the bpy module."""
+"""`python -m prt_addon <command> ...` and the `prt` command (pyproject.toml's console script), with the bpy
+module."""
 
 import signal
 import sys
@@ -12,11 +13,17 @@ def hold_sigterm():
         signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGTERM})
 
 
-hold_sigterm()
-import bpy  # noqa: F401,E402  (must come before mathutils, which the core uses)
+def console() -> int:
+    """The command line's exit status for the process's arguments, SIGTERM held back while the bpy module starts and
+    while it ends (hold_sigterm)."""
+    hold_sigterm()
+    import bpy  # noqa: F401  (must come before mathutils, which the core uses)
 
-from .commands.cli import main  # noqa: E402
+    from .commands.cli import main
+    code = main(sys.argv[1:])
+    hold_sigterm()
+    return code
 
-code = main(sys.argv[1:])
-hold_sigterm()
-sys.exit(code)
+
+if __name__ == "__main__":
+    sys.exit(console())

@@ -407,6 +407,23 @@ def test_flamenco_job_bakes_n_shards_and_a_merge_that_depends_on_them_bit_identi
     assert_same_bake(tmp_path / "baked.blend", reference("shadowed")[0])
 
 
+def test_flamenco_job_with_a_prt_command_runs_it_for_every_task_bit_identical_to_one_bake(
+        scenes, reference, tmp_path):
+    """The setting "PRT command" (here the venv's `prt`, this checkout's code through PYTHONPATH): every task is an
+    exec of `prt bake FILE ...` or `prt merge FILE PARTS...`, which a Worker runs as it is."""
+    job = compile_flamenco_job({"blendfile": str(scenes["room"]), "shards": 2, "parts_dir": str(tmp_path / "parts"),
+                                "output": str(tmp_path / "baked.blend"), "order": 3, "samples": 16,
+                                "prt_command": f" {BIN / 'prt'} "})
+    commands = [task["commands"][0] for task in in_dependency_order(job["tasks"])]
+    assert [command["name"] for command in commands] == ["exec"] * 3
+    assert [command["parameters"]["args"][:2] for command in commands] == [
+        ["bake", str(scenes["room"])], ["bake", str(scenes["room"])], ["merge", str(scenes["room"])]]
+    for command in commands:
+        ok(subprocess.run([command["parameters"]["exe"], *command["parameters"]["args"]], capture_output=True,
+                          text=True, timeout=600, env=dict(os.environ, PYTHONPATH=str(ROOT))))
+    assert_same_bake(tmp_path / "baked.blend", reference("shadowed")[0])
+
+
 # -- Open Job Description ------------------------------------------------------------------------------------------
 
 def test_openjd_template_runs_bake_over_1_to_n_then_merge_bit_identical_to_one_bake(scenes, reference, tmp_path):
@@ -414,13 +431,45 @@ def test_openjd_template_runs_bake_over_1_to_n_then_merge_bit_identical_to_one_b
     assert openjd.exists(), "openjd-cli is a dev dependency (requirements-dev.txt)"
     out = tmp_path / "baked.blend"
     parameters = {"BlendFile": scenes["room"], "PartsDir": tmp_path / "parts", "Output": out, "Shards": 3,
-                  "Order": 3, "Samples": 16, "Blender": fake_blender(tmp_path)}
+                  "Order": 3, "Samples": 16,
+                  "PrtCommand": f"{shlex.quote(str(fake_blender(tmp_path)))} -b --command prt"}
     command = [openjd, "run", ROOT / "farm" / "openjd" / "prt_bake.template.yaml", "--step", "Merge",
                "--run-dependencies", *sum((["-p", f"{key}={value}"] for key, value in parameters.items()), [])]
     result = ok(subprocess.run(command, capture_output=True, text=True, timeout=600))
     assert "Session ended successfully" in result.stdout
     assert sorted(path.name for path in (tmp_path / "parts").iterdir()) == [f"part-{k}-of-3.npz" for k in (1, 2, 3)]
     assert_same_bake(out, reference("shadowed")[0])
+
+
+# -- the README's commands -----------------------------------------------------------------------------------------
+
+def readme_block(heading: str) -> str:
+    """The first sh block under a heading of README.md, as printed."""
+    section = (ROOT / "README.md").read_text().split(f"\n{heading}\n", 1)[1]
+    return section.split("```sh\n", 1)[1].split("\n```", 1)[0]
+
+
+@pytest.fixture(scope="module")
+def default_bake(scenes, tmp_path_factory):
+    """The room baked by one process at the default settings, which the README's farm commands keep."""
+    out = tmp_path_factory.mktemp("farm_default") / "one.blend"
+    ok(run_cli("bake", scenes["room"], "--output", out))
+    return out
+
+
+@pytest.mark.parametrize("heading", ["### Open Job Description (AWS Deadline Cloud)", "### Dask"])
+def test_the_readmes_farm_commands_run_as_printed_with_only_the_bpy_module(scenes, default_bake, tmp_path, heading):
+    """In a folder laid out as the README's commands expect (scene.blend, the checkout's farm/, the venv as .venv),
+    bash runs the block as printed, and the bake it saves is one process's bit for bit. PYTHONPATH points the venv's
+    command at this checkout."""
+    (tmp_path / "farm").symlink_to(ROOT / "farm")
+    (tmp_path / ".venv").symlink_to(Path(sys.prefix))
+    shutil.copy(scenes["room"], tmp_path / "scene.blend")
+    block = readme_block(heading)
+    done = ok(subprocess.run(["bash", "-e", "-c", block], cwd=tmp_path, env=dict(os.environ, PYTHONPATH=str(ROOT)),
+                             capture_output=True, text=True, timeout=600))
+    print(f"{heading}: ran {block!r}; its last line: {done.stdout.strip().splitlines()[-1]!r}")
+    assert_same_bake(tmp_path / "baked.blend", default_bake)
 
 
 # -- Dask ----------------------------------------------------------------------------------------------------------

@@ -21,6 +21,7 @@ from prt_addon.blender import lights, sample_scenes
 from prt_addon.blender.relighting import Relighter
 from prt_addon.blender.render import render
 from prt_addon.blender.scene_bake import SceneBake
+from prt_addon.commands.demo import save_baked_demo
 from prt_addon.commands.view import VIEWER, address, start_server, stop_server
 from prt_addon.core import bake, glb, gltf_pack, lobes, rotation, sh, shading
 from prt_addon.core import lights as core_lights
@@ -57,6 +58,18 @@ def demo_glb(demo_file):
     assert done.returncode == 0, done.stderr
     assert "(web profile)" in done.stdout and "COLOR_0 under the scene's SH lights" in done.stdout
     return path
+
+
+@pytest.fixture(scope="module")
+def shown_demo_glb(addon, tmp_path_factory):
+    """`prt demo`'s baked file (saved with the PRT display on, its display materials standing in for the demo's
+    Albedo material), at 16 rays a vertex, exported."""
+    folder = tmp_path_factory.mktemp("shown_demo")
+    save_baked_demo(str(folder / "demo_baked.blend"), workers=1, samples=16)
+    bpy.ops.wm.read_homefile(use_empty=True)
+    done = run_cli("export", folder / "demo_baked.blend", "--gltf", folder / "demo.glb")
+    assert done.returncode == 0 and "warning" not in done.stderr, done.stderr
+    return folder / "demo.glb"
 
 
 @pytest.fixture(scope="module")
@@ -403,6 +416,47 @@ def test_f1_f2_switch_lighting_and_t_n_l_toggle(demo_url, browser, tmp_path):
         page.keyboard.press(key)
     assert np.array_equal(shot(page, tmp_path / "back.png"), prt_picture)
     page.close()
+
+
+def test_the_exported_demo_carries_its_albedo_texture(shown_demo_glb, tmp_path):
+    """Every mesh's material is the demo's Albedo, whose base colour texture holds the checker the demo built
+    (PNG: within one 8-bit step)."""
+    document, binary = read_glb(shown_demo_glb)
+    used = {mesh["name"]: document["materials"][mesh["primitives"][0]["material"]] for mesh in document["meshes"]
+            if "material" in mesh["primitives"][0]}
+    assert sorted(used) == ["BackWall", "Floor", "LeftWall", "Torus"]
+    assert {material["name"] for material in used.values()} == {sample_scenes.ALBEDO_NAME}
+    texture = document["textures"][used["Torus"]["pbrMetallicRoughness"]["baseColorTexture"]["index"]]
+    view = document["bufferViews"][document["images"][texture["source"]]["bufferView"]]
+    start = view.get("byteOffset", 0)
+    (tmp_path / "albedo.png").write_bytes(bytes(binary[start: start + view["byteLength"]]))
+    exported = read_png(tmp_path / "albedo.png")[::-1, :, :3]  # Blender's rows: bottom first
+    bpy.ops.wm.read_homefile(use_empty=True)
+    sample_scenes.build_demo_scene()
+    built = bpy.data.images[sample_scenes.ALBEDO_NAME]
+    width, height = built.size
+    pixels = np.empty(len(built.pixels), dtype=np.float32)
+    built.pixels.foreach_get(pixels)
+    bpy.ops.wm.read_homefile(use_empty=True)
+    assert exported.shape[:2] == (height, width)
+    assert np.abs(exported - pixels.reshape(height, width, 4)[..., :3]).max() <= 1 / 255 + 1e-6
+
+
+def test_the_viewers_t_toggles_the_exported_demos_albedo(shown_demo_glb, browser, tmp_path):
+    server = start_server(VIEWER, str(shown_demo_glb))
+    try:
+        page = open_viewer(browser, f"{address(server)}?readout=0")
+        textured = shot(page, tmp_path / "textured.png")
+        page.keyboard.press("t")
+        assert viewer_state(page)["textures"] is False
+        plain = shot(page, tmp_path / "plain.png")
+        page.keyboard.press("t")
+        assert np.array_equal(shot(page, tmp_path / "again.png"), textured)
+        page.close()
+    finally:
+        stop_server(server)
+    print(f"viewer, the exported demo: T changes the picture by {np.abs(plain - textured).mean():.4f} on average")
+    assert np.abs(plain - textured).mean() > 0.01
 
 
 def test_a_mouse_drag_orbits_the_camera_and_leaves_the_lights(demo_url, browser, tmp_path):

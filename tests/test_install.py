@@ -1,7 +1,11 @@
-"""The extension installs, registers, and unregisters cleanly, the way users install it."""
+"""The extension installs, registers, and unregisters cleanly, the way users install it; and the command line is
+an installed package of the venv (pyproject.toml, which setup.sh installs), so `prt` runs in any folder."""
 
+import os
+from pathlib import Path
 import subprocess
 import sys
+import tomllib
 import zipfile
 
 import bpy
@@ -72,3 +76,50 @@ def test_disable_enable_leaves_nothing_behind(addon, cycle):
     ours = [f for handlers in (bpy.app.handlers.depsgraph_update_post, bpy.app.handlers.frame_change_post)
             for f in handlers if f.__module__.startswith(ADDON_MODULE)]
     assert all(hasattr(f, "_bpy_persistent") for f in ours)  # kept when another file is loaded
+
+
+# -- the installed command line ---------------------------------------------------------------------------------
+
+BIN = Path(sys.executable).parent
+
+
+def without_pythonpath() -> dict:
+    return {name: value for name, value in os.environ.items() if name != "PYTHONPATH"}
+
+
+def test_prt_and_python_m_prt_addon_run_in_any_folder_from_a_checkouts_editable_install(tmp_path):
+    """Without PYTHONPATH, in a folder that holds nothing of the project: the venv's `prt` and `python -m prt_addon`
+    both answer, and the package they import is a checkout's (editable: the venv runs the checkout as it is)."""
+    for command in ([BIN / "prt", "--help"], [sys.executable, "-m", "prt_addon", "--help"]):
+        done = subprocess.run(command, cwd=tmp_path, env=without_pythonpath(), capture_output=True, text=True,
+                              timeout=300)
+        assert done.returncode == 0 and done.stdout.startswith("usage: prt "), (command, done.stderr)
+    found = subprocess.run([sys.executable, "-c", "import prt_addon; print(prt_addon.__file__)"], cwd=tmp_path,
+                           env=without_pythonpath(), capture_output=True, text=True, timeout=300)
+    checkout = Path(found.stdout.strip()).parents[1]
+    assert (checkout / "blender_manifest.toml").is_file(), found
+    assert tomllib.loads((checkout / "pyproject.toml").read_text())["project"]["scripts"] == {
+        "prt": "prt_addon.__main__:console"}
+
+
+def test_prt_bakes_files_named_from_the_folder_it_runs_in(tmp_path):
+    """`prt bake` in a folder of the user's, the paths relative to it (this checkout's code: PYTHONPATH)."""
+    bpy.ops.wm.read_homefile(use_empty=True)
+    bpy.ops.mesh.primitive_grid_add(x_subdivisions=3, y_subdivisions=3)
+    bpy.ops.wm.save_as_mainfile(filepath=str(tmp_path / "scene.blend"))
+    bpy.ops.wm.read_homefile(use_empty=True)
+    done = subprocess.run([BIN / "prt", "bake", "scene.blend", "--order", "2", "--samples", "8", "--output",
+                           "baked.blend"], cwd=tmp_path, env=dict(os.environ, PYTHONPATH=str(ROOT)),
+                          capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr
+    bpy.ops.wm.open_mainfile(filepath=str(tmp_path / "baked.blend"), load_ui=False)
+    try:
+        assert "prt" in bpy.data.objects["Grid"].data
+    finally:
+        bpy.ops.wm.read_homefile(use_empty=True)
+
+
+def test_the_package_has_the_extensions_version():
+    """One version: the extension's manifest's, which the package repeats."""
+    package = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]
+    assert package["version"] == tomllib.loads((ROOT / "blender_manifest.toml").read_text())["version"]

@@ -339,6 +339,74 @@ def test_display_materials_replace_and_restore_the_originals(plane, prt):
     assert not [m.name for m in bpy.data.materials if prt.display.DISPLAY_OF_KEY in m]
 
 
+def show_and_reopen(plane, tmp_path, own):
+    """The plane showing the PRT display in place of `own`, saved and opened again; the reopened plane."""
+    plane.data.materials.append(own)
+    add_light()
+    bpy.context.scene.prt_display.show_prt = True
+    update()
+    assert material_names(plane) != [own.name]
+    path = str(tmp_path / "shown.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=path)
+    bpy.ops.wm.read_homefile(use_empty=True)
+    bpy.ops.wm.open_mainfile(filepath=path)
+    return bpy.data.objects["Grid"]
+
+
+def test_the_originals_survive_saving_while_the_display_shows_and_come_back(plane, prt, tmp_path):
+    own = bpy.data.materials.new("Own")
+    own.diffuse_color = (0.25, 0.5, 0.75, 1.0)
+    plane = show_and_reopen(plane, tmp_path, own)
+    assert "Own" in bpy.data.materials and tuple(bpy.data.materials["Own"].diffuse_color) == (0.25, 0.5, 0.75, 1.0)
+    assert prt.materials.original_materials(plane) == [bpy.data.materials["Own"]]
+    bpy.context.scene.prt_display.show_prt = False
+    update()
+    assert material_names(plane) == ["Own"]
+    assert not [m.name for m in bpy.data.materials if prt.display.DISPLAY_OF_KEY in m]
+
+
+def test_clearing_the_bake_of_a_saved_shown_file_brings_the_originals_back(plane, tmp_path):
+    plane = show_and_reopen(plane, tmp_path, bpy.data.materials.new("Own"))
+    for ob in bpy.context.scene.objects:
+        ob.select_set(ob == plane)
+    bpy.context.view_layer.objects.active = plane
+    assert bpy.ops.prt.clear() == {"FINISHED"}
+    update()
+    assert material_names(plane) == ["Own"]
+
+
+def test_a_file_that_lost_the_originals_gets_a_note_not_a_crash(plane, prt, tmp_path, capsys):
+    """A file whose record names a material it does not hold (a record of names keeps no material in the file):
+    the export warns, naming object and material; the display goes off with the same note, that slot left empty; a
+    record naming a material the file holds brings it back."""
+    plane.data.materials.append(bpy.data.materials.new("Own"))
+    bare = bpy.data.objects.new("Kept", plane.data.copy())
+    bpy.context.scene.collection.objects.link(bare)
+    bare.data.materials[0] = bpy.data.materials.new("Kept material")
+    bare.data.materials[0].use_fake_user = True
+    add_light()
+    bpy.context.scene.prt_display.show_prt = True
+    update()
+    plane[prt.materials.ORIGINALS_KEY] = ["Own"]  # names, not references: nothing keeps "Own" in the file
+    bare[prt.materials.ORIGINALS_KEY] = ["Kept material"]
+    path = tmp_path / "lost.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(path))
+    bpy.ops.wm.open_mainfile(filepath=str(path))
+    assert "Own" not in bpy.data.materials
+    exported = run_cli("export", path, "--gltf", tmp_path / "lost.glb")
+    assert exported.returncode == 0, exported.stderr
+    assert exported.stderr.count("prt: warning: 'Grid': the PRT display stands in for material 'Own', which is not "
+                                 "in this file") == 1, exported.stderr
+    assert "'Kept'" not in exported.stderr
+    capsys.readouterr()
+    bpy.context.scene.prt_display.show_prt = False
+    update()
+    assert material_names(bpy.data.objects["Grid"]) == [None]
+    assert material_names(bpy.data.objects["Kept"]) == ["Kept material"]
+    printed = capsys.readouterr().out
+    assert printed.count("'Grid': the PRT display stands in for material 'Own', which is not in this file") == 1
+
+
 def test_disabling_the_addon_restores_the_originals(plane, addon):
     plane.data.materials.append(bpy.data.materials.new("Own"))
     add_light()

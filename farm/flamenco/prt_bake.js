@@ -2,7 +2,9 @@
 //
 // Flamenco job type "PRT Bake": one PRT bake spread over the farm. N tasks each bake one shard
 // (`blender -b FILE --command prt bake --shard K/N --out PART.npz`), and one merge task, which depends on all of
-// them, stores the bake as one Blender would (`--command prt merge PARTS... --output OUT.blend`).
+// them, stores the bake as one Blender would (`--command prt merge PARTS... --output OUT.blend`). With the setting
+// "PRT command" (e.g. `prt`, the command setup.sh installs with the bpy module) the tasks run that command instead
+// (`prt bake FILE --shard K/N ...`).
 //
 // Install: copy this file into the `scripts` folder next to the flamenco-manager executable and restart the
 // Manager. Every Worker's Blender needs the PRT extension enabled. See the README, "Baking on a farm".
@@ -24,6 +26,9 @@ const JOB_TYPE = {
           description: "Where the merge task saves the baked .blend file" },
         { key: "objects", type: "string", default: "", visible: "submission",
           description: "Comma-separated receivers; empty: every visible mesh" },
+        { key: "prt_command", type: "string", default: "", visible: "submission",
+          description: "How Workers run PRT: empty for their Blender (with the PRT extension enabled); else a " +
+                       "command such as prt (the bpy module's), split at spaces" },
         // The bake's settings: the names and defaults of prt_addon/core/settings.py.
         { key: "mode", type: "string", default: "shadowed", choices: ["unshadowed", "shadowed", "interreflected"],
           visible: "submission", description: "What the transfer holds" },
@@ -56,28 +61,35 @@ function compileJob(job) {
     for (let shard = 1; shard <= shards; shard++) {
         const part = `${settings.parts_dir}/part-${shard}-of-${shards}.npz`;
         const task = author.Task(`bake-${shard}-of-${shards}`, "blender");
-        task.addCommand(blenderCommand(settings.blendfile,
-            ["bake", "--shard", `${shard}/${shards}`, "--out", part].concat(options)));
+        task.addCommand(prtCommand(settings, "bake", ["--shard", `${shard}/${shards}`, "--out", part].concat(options)));
         job.addTask(task);
         bakeTasks.push(task);
         parts.push(part);
     }
     const merge = author.Task("merge", "blender");
-    merge.addCommand(blenderCommand(settings.blendfile, ["merge"].concat(parts, ["--output", settings.output])));
+    merge.addCommand(prtCommand(settings, "merge", parts.concat(["--output", settings.output])));
     for (const task of bakeTasks) {
         merge.addDependency(task);
     }
     job.addTask(merge);
 }
 
-// `blender {blenderArgs} FILE --command prt ARGS...`: Blender opens the file, then runs the add-on's command.
-function blenderCommand(blendfile, prtArgs) {
-    return author.Command("blender-render", {
-        exe: "{blender}",
-        exeArgs: "{blenderArgs}",
-        argsBefore: [],
-        blendfile: blendfile,
-        args: ["--command", "prt"].concat(prtArgs),
+// `{blender} {blenderArgs} FILE --command prt COMMAND ARGS...`: the Worker's Blender opens the file, then runs the
+// add-on's command. With a PRT command: `PRT COMMAND FILE ARGS...`, run as it is (exec, no shell).
+function prtCommand(settings, command, prtArgs) {
+    const words = (settings.prt_command || "").trim().split(/\s+/).filter((word) => word !== "");
+    if (words.length === 0) {
+        return author.Command("blender-render", {
+            exe: "{blender}",
+            exeArgs: "{blenderArgs}",
+            argsBefore: [],
+            blendfile: settings.blendfile,
+            args: ["--command", "prt", command].concat(prtArgs),
+        });
+    }
+    return author.Command("exec", {
+        exe: words[0],
+        args: words.slice(1).concat([command, settings.blendfile], prtArgs),
     });
 }
 

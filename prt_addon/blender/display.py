@@ -6,8 +6,9 @@ texture, or its Base Color) into an Emission of strength 1, so EEVEE shows exact
 Where a sun is split off an environment into a lamp, they add EEVEE's diffuse light (× the same albedo), which
 draws that sun's sharp shadows; the World then lights camera rays only, since PRT carries its light.
 
-Display materials replace an object's materials without losing them: the originals' names are kept in the
-object's `_prt_original_materials` property and put back when the display is switched off or the add-on disabled.
+Display materials replace an object's materials without losing them: the object keeps referencing its own
+(materials.record_originals), so they survive saving, and they are put back when the display is switched off, the
+bake cleared or the add-on disabled.
 """
 
 import bpy
@@ -77,7 +78,7 @@ def show(ob, texels=None):
             return
         restore(ob)  # baked the other way since it was shown
     originals = [slot.material for slot in ob.material_slots]
-    ob[materials.ORIGINALS_KEY] = [material.name if material else "" for material in originals]
+    materials.record_originals(ob)
     if not originals:
         ob.data.materials.append(display_material(None, texels))
     for slot, original in zip(ob.material_slots, originals):
@@ -85,21 +86,25 @@ def show(ob, texels=None):
 
 
 def restore(ob):
-    """Puts ob's own materials back (removing the slot `show` added) and drops unused display materials."""
-    names = list(ob[materials.ORIGINALS_KEY])
+    """Puts ob's own materials back (removing the slot `show` added) and drops unused display materials. Returns
+    materials.lost_note (None when every original came back): a slot whose material the file lost stays empty."""
+    originals = materials.original_materials(ob)
+    lost = materials.lost_note(ob)
     shown = {slot.material for slot in ob.material_slots}
-    if names:
-        for slot, name in zip(ob.material_slots, names):
-            slot.material = bpy.data.materials.get(name) if name else None
+    if originals:
+        for slot, original in zip(ob.material_slots, originals):
+            slot.material = original
     else:
         ob.data.materials.clear()
     del ob[materials.ORIGINALS_KEY]
     for material in shown:
         if material is not None and DISPLAY_OF_KEY in material and material.users == 0:
             bpy.data.materials.remove(material)
+    return lost
 
 
 def restore_all():
+    """Every object's own materials back (as `restore`) and every World as it was."""
     for ob in bpy.data.objects:
         if is_shown(ob):
             restore(ob)

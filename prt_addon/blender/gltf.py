@@ -30,8 +30,9 @@ DISPLAY_SETTINGS = ("show_prt", "use_albedo", "mode", "window")  # so the religh
 
 
 def export(scene, path: str, profile_name: str) -> dict:
-    """Writes the scene's baked meshes to `path` (.glb) packed for the profile; returns what it wrote. Nothing is
-    created before the packing fits the profile (a refusal names the limit)."""
+    """Writes the scene's baked meshes to `path` (.glb) packed for the profile; returns what it wrote, with notes
+    on materials left out (materials.lost_note). Nothing is created before the packing fits the profile (a refusal
+    names the limit)."""
     profile = gltf_pack.PROFILES.get(profile_name)
     if profile is None:
         raise InputError(f"unknown profile {profile_name!r}: expected one of {', '.join(gltf_pack.PROFILES)}")
@@ -57,7 +58,8 @@ def export(scene, path: str, profile_name: str) -> dict:
         "light_source": light_source, "active_light": getattr(scene, "prt_active_light", 0),
         "lights": gltf_pack.light_extras(shining, top_order)})
     return {"path": os.path.abspath(path), "profile": profile.name, "objects": list(packs),
-            "packs": packs, "light_source": light_source}
+            "packs": packs, "light_source": light_source,
+            "notes": [note for note in (materials.lost_note(ob) for ob, *_ in baked) if note is not None]}
 
 
 def _read_bake(mesh):

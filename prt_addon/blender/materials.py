@@ -8,7 +8,8 @@ whose surface shader has no such input, shows its viewport colour. An object wit
 DEFAULT_ALBEDO.
 
 While the PRT display shows, display materials stand in for an object's own: `original_materials` gives the
-object's own in either case.
+object's own in either case. The object holds them meanwhile (ORIGINALS_KEY references each one), so they keep a user
+and saving the file keeps them; a file whose record names a material it no longer holds gets `lost_note`.
 """
 
 import bpy
@@ -18,14 +19,42 @@ from ..core.colour import srgb_to_linear
 from .mesh_arrays import mesh_corner_vertices
 
 DEFAULT_ALBEDO = (0.8, 0.8, 0.8)  # what Blender renders a mesh without material with
-ORIGINALS_KEY = "_prt_original_materials"  # on an object: its materials' names while the display is shown
+# On an object while the display is shown: per slot, its own material (an ID reference, a real user) or "" for an
+# empty slot. A name instead of a reference is read by name (files whose record holds names).
+ORIGINALS_KEY = "_prt_original_materials"
+
+
+def record_originals(ob):
+    """Remembers ob's own materials, slot by slot, holding a reference to each."""
+    ob[ORIGINALS_KEY] = [slot.material or "" for slot in ob.material_slots]
 
 
 def original_materials(ob) -> list:
-    """ob's own materials per slot, also while display materials stand in for them."""
+    """ob's own materials per slot, also while display materials stand in for them; None for an empty slot or a
+    material the file no longer holds (`lost_note` names those)."""
     if ORIGINALS_KEY in ob:
-        return [bpy.data.materials.get(name) if name else None for name in ob[ORIGINALS_KEY]]
+        return [_recorded(entry) for entry in ob[ORIGINALS_KEY]]
     return [slot.material for slot in ob.material_slots]
+
+
+def _recorded(entry):
+    """A recorded original: the material referenced, or the one of that name; None for "", or one gone."""
+    if isinstance(entry, str):
+        return bpy.data.materials.get(entry) if entry else None
+    return entry  # a reference, None once its material was deleted
+
+
+def lost_note(ob):
+    """One sentence naming the recorded originals of ob that the file no longer holds, or None. They are left out:
+    their slots stay empty and the default albedo stands in for them."""
+    if ORIGINALS_KEY not in ob:
+        return None
+    lost = [repr(entry) if isinstance(entry, str) else "(deleted)" for entry in ob[ORIGINALS_KEY]
+            if entry != "" and _recorded(entry) is None]
+    if not lost:
+        return None
+    return (f"{ob.name!r}: the PRT display stands in for material {', '.join(lost)}, which is not in this file; "
+            f"left out (the default albedo in its place): assign the object its material again")
 
 
 def surface_shader(material):
@@ -104,6 +133,8 @@ def vertex_albedo(ob, mesh, notes: list, corner_points=None, point_count=None) -
     mesh.polygons.foreach_get("loop_total", face_sizes)
     corner_material = np.repeat(face_material, face_sizes)
     corner_colour = np.tile(np.array(DEFAULT_ALBEDO), (len(corner_vertex), 1))
+    if (lost := lost_note(ob)) is not None:
+        notes.append(lost)
     for slot_index, material in enumerate(original_materials(ob)):
         corners = corner_material == slot_index
         if material is not None and corners.any():

@@ -67,7 +67,8 @@ class Relighter:
             elif settings.prt_lights:
                 sync_sun_lamps(settings, create=False)  # a split-off sun's lamp turns with its environment
                 self._shade(receivers, settings)
-            _sync_display(scene, receivers, settings.prt_display)
+            for lost in _sync_display(scene, receivers, settings.prt_display):
+                self._report_once(f"PRT: {lost}")
         finally:
             self.busy = False
 
@@ -174,15 +175,18 @@ def _bake_key(mesh):
     return meta.get("bake_id"), meta.get("vertex_count"), len(mesh.vertices), len(mesh.loops)
 
 
-def _sync_display(scene, receivers, settings):
-    """Display materials on the receivers while the PRT display is on; everything else shows its own."""
+def _sync_display(scene, receivers, settings) -> list:
+    """Display materials on the receivers while the PRT display is on; everything else shows its own. Returns the
+    notes on originals that could not be put back (display.restore)."""
     shown = {ob.name_full: where for ob, (_, where) in receivers} if settings.show_prt else {}
+    lost = []
     for ob in scene.objects:
         if ob.name_full in shown:
             display.show(ob, texel_maps.display_source(ob.data) if shown[ob.name_full] is texel_maps.TEXEL_STORAGE
                          else None)
         elif display.is_shown(ob) and ob.mode != "EDIT":  # an object being edited keeps what it shows
-            display.restore(ob)
+            lost.append(display.restore(ob))
     display.set_albedo(settings.use_albedo and settings.mode == heatmaps.SHADED)  # a heatmap shows as it is
     lamps = any(entry.sun_lamp is not None and not entry.sun_lamp.hide_render for entry in scene.prt_lights)
     display.set_lamp_light(scene, settings.show_prt and settings.mode == heatmaps.SHADED and lamps)
+    return [note for note in lost if note is not None]

@@ -13,14 +13,13 @@ from ..core.bake import BakeSettings
 from ..core.errors import InputError
 from ..core.shards import Stopwatch, shard_of
 from . import farm_dask, light_options
-from .common import check_writable, log, names, open_file, save_bake, warn
+from .common import add_object_options, check_writable, log, object_names, open_file, save_bake, warn
 
 
 def add_parser(commands):
     parser = commands.add_parser("bake", help="bake SH transfer into a .blend file's meshes")
     parser.add_argument("file", nargs="?", help=".blend file to open (in Blender: defaults to the open file)")
-    parser.add_argument("--objects", help="comma-separated receiver names (default: the file's selected meshes, else "
-                             "every visible mesh)")
+    add_object_options(parser, "the file's selected meshes, else every visible mesh")
     parser.add_argument("--preset", type=str.lower, choices=list(presets.PRESETS),
                         help="start from a preset's settings (see the README's table); options given override it")
     for setting in spec.BAKE + (spec.WORKERS,) + spec.TEXEL:
@@ -97,7 +96,7 @@ def run(args, in_blender: bool) -> int:
             check_writable(path)
     open_file(args.file, required=not in_blender)
     workers = getattr(args, "workers", spec.WORKERS.default)
-    receivers = names(args.objects)
+    receivers = object_names(args)
     if shard:
         info = bake_shard(bpy.context, settings, receivers, shard, args.out, stopwatch, workers, log=log)
         log(f"PRT shard {args.shard}: {info.rays} rays in {info.time_s:.2f} s; wrote {args.out}")

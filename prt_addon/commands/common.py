@@ -73,8 +73,19 @@ def save_bake(scene_bake, output, report):
         write_json(report, scene_bake.report().as_dict())
 
 
-def names(text):
-    return [name.strip() for name in text.split(",")] if text else None
+def add_object_options(parser, default: str):
+    """--objects A,B (names split at commas) and --object NAME (one name exactly as written, commas and all;
+    repeatable): `object_names` gives what they name together. `default` says what neither names."""
+    parser.add_argument("--objects", metavar="A,B", help=f"comma-separated names (default: {default})")
+    parser.add_argument("--object", dest="object_names", action="append", metavar="NAME",
+                        help="one name exactly as written, also one with a comma; repeat it for more (with --objects: "
+                             "both)")
+
+
+def object_names(args):
+    """The names --objects and --object give, in order, each once; None when neither gives one."""
+    split = [name.strip() for name in args.objects.split(",")] if args.objects else []
+    return list(dict.fromkeys(split + (args.object_names or []))) or None
 
 
 def write_json(path, data):

@@ -37,25 +37,8 @@ def run(args, in_blender: bool) -> int:
 
 def demo(output: str, workers: int = 2, samples: int = 256) -> int:
     os.makedirs(output, exist_ok=True)
-    bpy.ops.wm.read_homefile(use_empty=True)
-    objects = sample_scenes.build_demo_scene()
-    print(f"prt demo: built the demo scene ({', '.join(sorted(o.name for o in objects.values() if o))})")
-
-    settings = bake.BakeSettings(order=4, mode="shadowed", samples=samples)
-    scene_bake = SceneBake(bpy.context, settings, workers=workers)
-    log(scene_bake.run(log=log).line())
-    bake_report = scene_bake.report().as_dict()  # before relight_file reopens the file and these objects go
-
-    scene = bpy.context.scene
-    add_lights(scene, objects["sun"])
-    scene.prt_display.show_prt = True
-    start = time.perf_counter()
-    Relighter().refresh(scene, bpy.context.evaluated_depsgraph_get())
-    relight_s = time.perf_counter() - start
     blend_path = os.path.abspath(os.path.join(output, "demo_baked.blend"))
-    bpy.ops.wm.save_as_mainfile(filepath=blend_path)
-    described = [lights.describe(entry, scene) for entry in scene.prt_lights]
-
+    baked = save_baked_demo(blend_path, workers, samples)
     renders = [
         relight_file(blend_path, os.path.join(output, "demo.png"), samples=RENDER_SAMPLES),
         relight_file(blend_path, os.path.join(output, "demo_moved.png"), light_index=0,
@@ -63,18 +46,37 @@ def demo(output: str, workers: int = 2, samples: int = 256) -> int:
     ]
     for done in renders:
         log(f"prt demo: rendered {done['path']} with {done['engine']} in {done['render_s']:.1f} s")
-    report = {
-        "bake": bake_report,
-        "relight": {"lights": described, "display": "PRT colour attribute × albedo texture (display materials)",
-                    "time_s": relight_s, "timed": "lights set → every mesh's colours written, including the first "
-                                                  "read of its transfer"},
-        "renders": renders,
-        "blend": blend_path,
-    }
+    report = {**baked, "renders": renders, "blend": blend_path}
     report_path = os.path.join(output, "demo_report.json")
     write_json(report_path, report)
     print(f"prt demo: wrote {', '.join(done['path'] for done in renders)}, {blend_path} and {report_path}")
     return 0
+
+
+def save_baked_demo(blend_path: str, workers: int, samples: int) -> dict:
+    """Builds the demo scene, bakes it, lights it, switches the PRT display on and saves it to `blend_path`;
+    returns the report's bake and relight sections."""
+    bpy.ops.wm.read_homefile(use_empty=True)
+    objects = sample_scenes.build_demo_scene()
+    print(f"prt demo: built the demo scene ({', '.join(sorted(o.name for o in objects.values() if o))})")
+
+    settings = bake.BakeSettings(order=4, mode="shadowed", samples=samples)
+    scene_bake = SceneBake(bpy.context, settings, workers=workers)
+    log(scene_bake.run(log=log).line())
+    bake_report = scene_bake.report().as_dict()  # before the file is reopened and these objects go
+
+    scene = bpy.context.scene
+    add_lights(scene, objects["sun"])
+    scene.prt_display.show_prt = True
+    start = time.perf_counter()
+    Relighter().refresh(scene, bpy.context.evaluated_depsgraph_get())
+    relight_s = time.perf_counter() - start
+    bpy.ops.wm.save_as_mainfile(filepath=blend_path)
+    return {"bake": bake_report,
+            "relight": {"lights": [lights.describe(entry, scene) for entry in scene.prt_lights],
+                        "display": "PRT colour attribute × albedo texture (display materials)",
+                        "time_s": relight_s, "timed": "lights set → every mesh's colours written, including the "
+                                                      "first read of its transfer"}}
 
 
 def add_lights(scene, sun_object):

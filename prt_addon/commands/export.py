@@ -11,7 +11,7 @@ import numpy as np
 from ..blender import geometry, gltf, mesh_arrays, storage, texel_maps
 from ..core.errors import InputError
 from ..core.gltf_pack import PROFILES, PackedMaps
-from .common import open_file
+from .common import open_file, warn
 
 
 def add_parser(commands):
@@ -63,7 +63,9 @@ def run(args, in_blender: bool) -> int:
 
 
 def _run_gltf(scene, path, profile) -> int:
-    print(f"prt: {gltf_summary(gltf.export(scene, path, profile))}")
+    done = gltf.export(scene, path, profile)
+    print(f"prt: {gltf_summary(done)}")
+    warn(done["notes"])
     return 0
 
 

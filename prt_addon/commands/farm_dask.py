@@ -76,12 +76,12 @@ def _local_workers(scheduler: str) -> int | None:
 
 
 def bake_arguments(settings, receivers) -> list[str]:
-    """The command-line options that bake these settings and receivers."""
+    """The command-line options that bake these settings and receivers (each named exactly, commas and all)."""
     arguments = []
     for setting in spec.BAKE:
         value = getattr(settings, setting.name)
         arguments += ["--" + setting.name.replace("_", "-"), "auto" if value is None else str(value)]
-    return arguments + (["--objects", ",".join(receivers)] if receivers else [])
+    return arguments + [option for name in receivers or () for option in ("--object", name)]
 
 
 class DaskBake:

@@ -7,14 +7,13 @@ import bpy
 
 from ..blender.image_validation import DEFAULT_PASSES as IMAGE_PASSES, DEFAULT_RESOLUTION, validate_image
 from ..blender.validation import DEFAULT_PASSES, DEFAULT_SAMPLES, REFERENCES, Validation
-from .common import log, names, open_file, warn, write_json
+from .common import add_object_options, log, object_names, open_file, warn, write_json
 
 
 def add_parser(commands):
     parser = commands.add_parser("validate", help="compare the PRT colours with Cycles under the same light")
     parser.add_argument("file", nargs="?", help="baked .blend file (in Blender: defaults to the open file)")
-    parser.add_argument("--objects", help="comma-separated names (default: the selected meshes when one has a bake, else "
-                             "every visible mesh with a bake)")
+    add_object_options(parser, "the selected meshes when one has a bake, else every visible mesh with a bake")
     parser.add_argument("--samples", type=int, default=DEFAULT_SAMPLES, help="Cycles samples per pass")
     parser.add_argument("--passes", type=int,
                         help=f"Cycles passes with different seeds; their spread measures Cycles' noise (≥ 2; default "
@@ -46,7 +45,7 @@ def run(args, in_blender: bool) -> int:
     open_file(args.file, required=not in_blender)
     if args.image:
         return _run_image(args)
-    validation = Validation(bpy.context, args.samples, args.passes or DEFAULT_PASSES, names(args.objects),
+    validation = Validation(bpy.context, args.samples, args.passes or DEFAULT_PASSES, object_names(args),
                             args.reference)
     warn(validation.problems + validation.notes)
     comparisons = validation.run(log=log)

@@ -189,6 +189,8 @@ class PRT_OT_export_gltf(bpy.types.Operator, ExportHelper):
         except InputError as problem:
             self.report({"ERROR"}, str(problem))
             return {"CANCELLED"}
+        for note in done["notes"]:
+            self.report({"WARNING"}, note)
         self.report({"INFO"}, f"PRT: wrote {done['path']} ({len(done['objects'])} objects, {self.profile})")
         return {"FINISHED"}
 
