@@ -88,7 +88,7 @@ def prt(addon):
     classes), use these rather than the checkout's `prt_addon`."""
     class Modules:
         def __getattr__(self, name):
-            room = "ui" if name in ("handlers", "overlays") else "blender"
+            room = "ui" if name == "overlays" else "blender"
             return importlib.import_module(f"{addon}.prt_addon.{room}.{name}")
     return Modules()
 

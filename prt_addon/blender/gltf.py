@@ -55,7 +55,7 @@ def export(scene, path: str, profile_name: str) -> dict:
     top_order = max(orders)
     _finish_file(path, scene.name, packs, {
         "profile": profile.name, "convention": gltf_pack.CONVENTION, "order": top_order, **_window_extras(window, cache),
-        "light_source": light_source, "active_light": getattr(scene, "prt_active_light", 0),
+        "light_source": light_source, "active_light": scene.prt_active_light,
         "lights": gltf_pack.light_extras(shining, top_order)})
     return {"path": os.path.abspath(path), "profile": profile.name, "objects": list(packs),
             "packs": packs, "light_source": light_source,

@@ -18,7 +18,7 @@ from . import storage, texel_maps
 from .mesh_arrays import mesh_triangles
 
 PROVISIONAL_RESOLUTION = 256  # overlaps are looked for at this resolution before the probe decides the real one
-OBJECT_PREFIX = "prt_"        # the Object properties holding each object's choice: prt_storage, prt_resolution, ...
+OBJECT_PREFIX = "prt_"        # the Object properties (blender.schema) holding each object's choice: prt_storage, ...
 
 
 @dataclass
@@ -32,10 +32,8 @@ class TexelOptions:
 
 
 def options_for(ob, overrides: dict) -> TexelOptions:
-    """The object's own choice (its prt_* properties, where the add-on is registered), overridden by `overrides`
-    (the command line's options)."""
-    values = {f.name: getattr(ob, OBJECT_PREFIX + f.name) for f in fields(TexelOptions)
-              if hasattr(ob, OBJECT_PREFIX + f.name)}
+    """The object's own choice (its prt_* properties), overridden by `overrides` (the command line's options)."""
+    values = {f.name: getattr(ob, OBJECT_PREFIX + f.name) for f in fields(TexelOptions)}
     values.update(overrides)
     return TexelOptions(**values)
 

@@ -14,6 +14,7 @@ import bpy
 from ..blender import lights, sample_scenes
 from ..blender.relighting import Relighter
 from ..blender.scene_bake import SceneBake
+from ..blender.schema import add_light
 from ..core import bake
 from .common import log, write_json
 from .relight import relight_file
@@ -81,10 +82,8 @@ def save_baked_demo(blend_path: str, workers: int, samples: int) -> dict:
 
 def add_lights(scene, sun_object):
     """A sun that follows the scene's Sun object, and a dim sky so that shadows are not black."""
-    bpy.ops.prt.light_add(kind="SUN")
-    sun = scene.prt_lights[-1]
+    sun = add_light(scene, "SUN")
     sun.sun_object = sun_object
     sun.strength = SUN_IRRADIANCE
-    bpy.ops.prt.light_add(kind="SKY")
-    scene.prt_lights[-1].strength = SKY_RADIANCE
+    add_light(scene, "SKY").strength = SKY_RADIANCE
     scene.prt_active_light = 0

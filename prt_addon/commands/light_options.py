@@ -9,6 +9,7 @@ import os
 import bpy
 
 from ..blender import lights
+from ..blender.schema import add_light
 from ..core.errors import InputError
 from .common import log
 
@@ -68,22 +69,17 @@ def add_lights(scene, args):
     image = _image(args.env) if args.env else None
     scene.prt_lights.clear()
     for theta, phi, irradiance in args.sun or ():
-        sun = _new_light(scene, "SUN")
+        sun = add_light(scene, "SUN")
         sun.theta, sun.phi, sun.strength = math.radians(theta), math.radians(phi), irradiance
     if image is not None:
-        environment = _new_light(scene, "ENVIRONMENT")
+        environment = add_light(scene, "ENVIRONMENT")
         environment.image = image
         environment.rotation = (0.0, 0.0, math.radians(args.env_rotation or 0.0))
     if args.sky is not None:
-        _new_light(scene, "SKY").strength = args.sky
+        add_light(scene, "SKY").strength = args.sky
     scene.prt_active_light = 0
     for entry in scene.prt_lights:
         log(f"prt: added SH light: {lights.describe(entry, scene)}")
-
-
-def _new_light(scene, kind: str):
-    bpy.ops.prt.light_add(kind=kind)  # as the sidebar's + adds it
-    return scene.prt_lights[-1]
 
 
 def _image(path: str):

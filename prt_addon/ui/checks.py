@@ -5,10 +5,10 @@ import bpy
 from bpy.props import CollectionProperty, EnumProperty, PointerProperty, StringProperty
 
 from ..blender.checks import all_checks
+from ..blender.registration import classes_and_properties
 from ..blender.scene_bake import SceneBake
 from ..core import checks
 from ..core.errors import InputError
-from .registration import classes_and_properties
 
 ICONS = {checks.ERROR: "CANCEL", checks.WARNING: "ERROR", checks.INFO: "INFO", checks.OK: "CHECKMARK"}
 LEVEL_ITEMS = [(level, level.capitalize(), "How serious the finding is") for level in checks.LEVELS]

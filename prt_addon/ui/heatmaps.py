@@ -1,32 +1,19 @@
-"""The Display panel's heatmap modes (Shaded, Estimated Error, Difference from Cycles) and their legend: swatches of
-the colour scale and its range, as the relighting engine last painted it (blender.heatmaps)."""
+"""The Display panel's legend for its heatmap modes (blender.schema's DISPLAY_MODES): swatches of the colour scale
+and its range, as the relighting engine last painted it (blender.heatmaps)."""
 
 import bpy.utils.previews
 import numpy as np
 
 from ..blender.heatmaps import SHADED
 from ..core import heatmap
-from .handlers import engine
+from ..blender.handlers import engine
 
-DISPLAY_MODES = [
-    (SHADED, "Shaded", "The PRT colours under the SH lights"),
-    ("ERROR", "Estimated Error", "Heatmap of the bake's estimated relative error: where more rays would help"),
-    ("DIFFERENCE", "Difference from Cycles", "Heatmap of the last validation's error against Cycles "
-                                             "(the Validation panel's button stores it)"),
-]
 TITLES = {"ERROR": "Estimated relative error", "DIFFERENCE": "Error against Cycles"}
 MISSING = {"ERROR": "no stored error", "DIFFERENCE": "not validated"}  # why a mesh is grey
 SWATCHES = 8
 SWATCH_PIXELS = 16
 
 _swatches = None  # a bpy.utils.previews collection, made at the first draw: never in background mode
-
-
-def mode_changed(display, context):
-    """A heatmap shows through the display materials, so choosing one switches the PRT display on."""
-    if display.mode != SHADED and not display.show_prt:
-        display.show_prt = True
-    display.id_data.update_tag()
 
 
 def draw_legend(layout, mode):

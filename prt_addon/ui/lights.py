@@ -1,97 +1,19 @@
-"""SH lights and display switches, stored in the scene, with their list, add and remove operators, and the Lights
-and Display panels of the sidebar tab "PRT". What the settings mean as light is blender.lights'.
-
-Every property is animatable and drivable. Each one has an update callback: Blender then tags the scene when it
-is set from Python too (not only from the UI), so the depsgraph handler sees the change.
+"""The SH lights' list, add and remove operators, and the Lights and Display panels of the sidebar tab "PRT". The
+lights and display switches are the scene's saved settings (blender.schema); what they mean as light is
+blender.lights'.
 """
 
 import math
 
 import bpy
-from bpy.props import (BoolProperty, CollectionProperty, EnumProperty, FloatProperty, FloatVectorProperty,
-                       IntProperty, PointerProperty, StringProperty)
+from bpy.props import EnumProperty, StringProperty
 
-from ..blender.lights import environment_image, found_sun, scene_fidelity, sync_sun_lamps
-from .handlers import engine
-from .heatmaps import DISPLAY_MODES, draw_legend, mode_changed
+from ..blender.handlers import engine
+from ..blender.lights import environment_image, found_sun, scene_fidelity
+from ..blender.registration import classes_and_properties
+from ..blender.schema import KINDS, add_light
+from .heatmaps import draw_legend
 from .panels import SidebarPanel
-from .registration import classes_and_properties
-
-KINDS = [
-    ("SUN", "Sun", "A disc of light from one direction, optionally following a Sun light object", "LIGHT_SUN", 0),
-    ("ENVIRONMENT", "Environment", "An equirectangular image around the scene (default: the World's)", "WORLD", 1),
-    ("SKY", "Sky", "The same light from every direction", "LIGHT_HEMI", 2),
-]
-WINDOWS = [
-    ("auto", "Auto", "The gentlest taper, up to Hanning, that leaves at most 1 % of the summed light negative"),
-    ("none", "None", "Full sharpness; sharp lights ring (the negative values are clamped at display)"),
-    ("hanning", "Hanning", "Tapers high bands strongly: softest, no visible ringing"),
-    ("lanczos", "Lanczos", "Tapers high bands gently: between sharp and soft"),
-]
-
-
-def _tag_scene(self, context):
-    self.id_data.update_tag()
-
-
-def _split_sun_changed(self, context):
-    sync_sun_lamps(self.id_data, create=True)  # the lamp is made or removed here, never in a handler
-    self.id_data.update_tag()
-
-
-def _is_sun_object(self, ob):
-    return ob.type == "LIGHT" and ob.data.type == "SUN"
-
-
-class PRT_PG_light(bpy.types.PropertyGroup):
-    """One SH light; `name` (from PropertyGroup) is what the list shows."""
-    kind: EnumProperty(name="Kind", items=KINDS, default="SUN", update=_tag_scene)
-    use: BoolProperty(name="Enabled", description="Include this light in the sum", default=True,
-                      update=_tag_scene)
-    colour: FloatVectorProperty(name="Colour", subtype="COLOR", size=3, min=0.0, soft_max=1.0,
-                                default=(1.0, 1.0, 1.0), update=_tag_scene)
-    strength: FloatProperty(
-        name="Strength", min=0.0, soft_max=10.0, default=1.0, update=_tag_scene,
-        description="Sun: irradiance on a surface facing it (as Blender's Sun Strength). "
-                    "Environment: multiplies the image. Sky: radiance")
-    theta: FloatProperty(name="θ", description="Angle of the light from the zenith (+Z)", subtype="ANGLE",
-                         min=0.0, max=math.pi, default=math.radians(35.0), update=_tag_scene)
-    phi: FloatProperty(name="φ", description="Azimuth of the light, from +X towards +Y", subtype="ANGLE",
-                       soft_min=-math.pi, soft_max=math.pi, default=math.radians(-60.0), update=_tag_scene)
-    sun_object: PointerProperty(
-        name="Sun Object", type=bpy.types.Object, poll=_is_sun_object, update=_tag_scene,
-        description="Follow this Sun light: its rotation gives the direction and its Angle the disc size")
-    angular_radius: FloatProperty(
-        name="Radius", description="Angular radius of the sun's disc (a linked Sun's Angle / 2)",
-        subtype="ANGLE", min=0.0, max=math.pi / 2, default=math.radians(2.5), update=_tag_scene)
-    image: PointerProperty(name="Image", type=bpy.types.Image, update=_tag_scene,
-                           description="Equirectangular image; empty: the World's Environment Texture")
-    rotation: FloatVectorProperty(name="Rotation", subtype="EULER", size=3, update=_tag_scene,
-                                  description="Turns the environment: what was along d comes from R·d")
-    split_sun: BoolProperty(
-        name="Split Off Sun", default=False, update=_split_sun_changed,
-        description="Find a compact strong sun in the image, take it out of what PRT carries and let a Blender Sun "
-                    "lamp draw it, with sharp shadows in EEVEE")
-    sun_lamp: PointerProperty(name="Sun Lamp", type=bpy.types.Object,
-                              description="The Sun lamp that draws the sun split off this environment")
-
-
-class PRT_PG_display(bpy.types.PropertyGroup):
-    show_prt: BoolProperty(
-        name="PRT Display", default=False, update=_tag_scene,
-        description="Show the PRT colours through display materials (the scene's own materials are kept "
-                    "and put back when this is off)")
-    mode: EnumProperty(name="Show", items=DISPLAY_MODES, default="SHADED", update=mode_changed,
-                       description="The PRT colours, or a heatmap of where the bake is inaccurate")
-    use_albedo: BoolProperty(name="Albedo Texture", default=True, update=_tag_scene,
-                             description="Multiply the PRT colour by each material's Base Color texture")
-    window: EnumProperty(name="Window", items=WINDOWS, default="auto", update=_tag_scene,
-                         description="Taper high SH bands of the summed light against ringing")
-    show_normals: BoolProperty(name="Normals", description="Draw the vertex normals of baked meshes",
-                               default=False, update=_tag_scene)
-    show_light_directions: BoolProperty(
-        name="Light Directions", description="Draw a line from the 3D cursor towards each sun",
-        default=False, update=_tag_scene)
 
 
 class PRT_UL_lights(bpy.types.UIList):
@@ -111,11 +33,7 @@ class PRT_OT_light_add(bpy.types.Operator):
     kind: EnumProperty(name="Kind", items=KINDS, default="SUN")
 
     def execute(self, context):
-        scene = context.scene
-        light = scene.prt_lights.add()
-        light.kind = self.kind
-        light.name = next(entry[1] for entry in KINDS if entry[0] == self.kind)
-        scene.prt_active_light = len(scene.prt_lights) - 1
+        add_light(context.scene, self.kind)
         return {"FINISHED"}
 
 
@@ -249,13 +167,10 @@ class PRT_PT_display(SidebarPanel, bpy.types.Panel):
         column.prop(display, "show_light_directions")
 
 
-classes = (PRT_PG_light, PRT_PG_display, PRT_UL_lights, PRT_OT_light_add, PRT_OT_light_remove,
+classes = (PRT_UL_lights, PRT_OT_light_add, PRT_OT_light_remove,
            PRT_OT_analyse_lights, PRT_PT_lights, PRT_PT_light_fidelity, PRT_PT_display)
 
 
 register, unregister = classes_and_properties(classes, [
-    (bpy.types.Scene, "prt_lights", CollectionProperty(type=PRT_PG_light)),
-    (bpy.types.Scene, "prt_active_light", IntProperty(name="Active SH Light", default=0, min=0)),
-    (bpy.types.Scene, "prt_display", PointerProperty(type=PRT_PG_display)),
     (bpy.types.WindowManager, "prt_light_fidelity", StringProperty()),  # the last analysis, a line per order
 ])

@@ -14,8 +14,8 @@ from bpy.props import CollectionProperty, StringProperty
 
 from ..blender import storage
 from ..blender.fingerprint import stale_line, stale_receivers
+from ..blender.registration import classes_and_properties
 from .operators import BakeJob
-from .registration import classes_and_properties
 
 
 class PRT_PG_stale_check(bpy.types.PropertyGroup):

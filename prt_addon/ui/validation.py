@@ -1,27 +1,14 @@
-"""Validation against Cycles from the sidebar: its settings, the operator (modal in the UI, synchronous in
-background mode) and a panel showing the last result."""
+"""Validation against Cycles from the sidebar: the operator (modal in the UI, synchronous in background mode) and a
+panel with the scene's validation settings (blender.schema) and the last result."""
 
 import bpy
-from bpy.props import CollectionProperty, EnumProperty, FloatProperty, IntProperty, PointerProperty, StringProperty
+from bpy.props import CollectionProperty, FloatProperty, IntProperty, PointerProperty, StringProperty
 
-from ..blender.validation import DEFAULT_PASSES, DEFAULT_SAMPLES, REFERENCES, Validation
+from ..blender.registration import classes_and_properties
+from ..blender.validation import Validation
 from .operators import ModalJob
 from .panels import SidebarPanel
-from .properties import PRT_PG_job_status
-from .registration import classes_and_properties
-
-
-class PRT_PG_validate_settings(bpy.types.PropertyGroup):
-    samples: IntProperty(name="Cycles Samples", description="Cycles samples per pass",
-                         default=DEFAULT_SAMPLES, min=1, soft_max=4096)
-    passes: IntProperty(name="Passes", description="Cycles passes with different seeds: their spread measures "
-                        "Cycles' own noise, which is taken out of the comparison",
-                        default=DEFAULT_PASSES, min=2, max=64)
-    reference: EnumProperty(name="Against", default=REFERENCES[0], items=[
-        (REFERENCES[0], "Band-Limited Light", "Cycles under the light PRT uses: PRT's own error"),
-        (REFERENCES[1], "Real Light", "Also Cycles under the scene's lights as they are (environment images, Sun "
-                                      "lamps): the total error and what band-limiting costs (twice the Cycles time)"),
-    ])
+from .status import PRT_PG_job_status
 
 
 class PRT_PG_compared(bpy.types.PropertyGroup):
@@ -130,11 +117,10 @@ class PRT_PT_validate(SidebarPanel, bpy.types.Panel):
             column.label(text=note, icon="INFO")
 
 
-classes = (PRT_PG_validate_settings, PRT_PG_compared, PRT_PG_validation_result, PRT_OT_validate, PRT_PT_validate)
+classes = (PRT_PG_compared, PRT_PG_validation_result, PRT_OT_validate, PRT_PT_validate)
 
 
 register, unregister = classes_and_properties(classes, [
-    (bpy.types.Scene, "prt_validate", PointerProperty(type=PRT_PG_validate_settings)),
     (bpy.types.WindowManager, "prt_validate_status", PointerProperty(type=PRT_PG_job_status)),
     (bpy.types.WindowManager, "prt_validation", PointerProperty(type=PRT_PG_validation_result)),
 ])

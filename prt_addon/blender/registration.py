@@ -1,5 +1,6 @@
-"""register() and unregister() for an interface module: its classes, and the properties they add to Blender's
-types (attached once the classes exist, removed before they go)."""
+"""register() and unregister() for a module that defines Blender classes (the saved settings' schema, an interface
+module): its classes, and the properties they add to Blender's types (attached once the classes exist, removed
+before they go)."""
 
 import bpy
 

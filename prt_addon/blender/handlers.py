@@ -1,5 +1,6 @@
 """Persistent handlers that keep the PRT colours and display materials current as lights change, through one
-relighting engine (blender.relighting).
+relighting engine (blender.relighting). The add-on registers them, and so does a command that shows the PRT display
+(commands.common.schema_registered); the interface reads the engine's last legend and Auto window.
 
 depsgraph_update_post refreshes only for light-relevant updates (the engine says which); frame_change_post always
 refreshes, since animated and driven settings change with the frame; load_post forgets the previous file.
@@ -9,8 +10,8 @@ No bpy.ops here: handlers run inside Blender's evaluation.
 import bpy
 from bpy.app.handlers import persistent
 
-from ..blender import display
-from ..blender.relighting import Relighter
+from . import display
+from .relighting import Relighter
 
 engine = Relighter()
 
