@@ -30,9 +30,9 @@ import numpy as np  # noqa: E402
 
 from benchmarks.bake import Picks, bake_picks  # noqa: E402
 from benchmarks.convergence import REFERENCE_FACTOR, REFERENCE_SEED_OFFSET, coefficient_error  # noqa: E402
-from prt_addon.blender import geometry, mesh_arrays, sample_scenes, storage, validation  # noqa: E402
+from prt_addon.blender import geometry, mesh_arrays, sample_scenes, schema, storage, validation  # noqa: E402
 from prt_addon.blender.scene_bake import SceneBake  # noqa: E402
-from prt_addon.commands.common import addon_registered, write_json  # noqa: E402
+from prt_addon.commands.common import schema_registered, write_json  # noqa: E402
 from prt_addon.core import lights  # noqa: E402
 from prt_addon.core.bake import BakeSettings  # noqa: E402
 from prt_addon.core.statistics import compare, rms  # noqa: E402
@@ -105,14 +105,13 @@ def add_floor():
 
 
 def add_low_sun(scene):
-    """SH lights (the add-on's, so it must be registered): the default light's Hanning-windowed sun over its sky,
-    but with the sun at θ 75°, so the spheres' terminator runs across them; nowhere negative (no clamping)."""
-    bpy.ops.prt.light_add(kind="SUN")
-    sun = scene.prt_lights[-1]
+    """SH lights (saved settings, so blender.schema must be registered): the default light's Hanning-windowed sun
+    over its sky, but with the sun at θ 75°, so the spheres' terminator runs across them; nowhere negative (no
+    clamping)."""
+    sun = schema.add_light(scene, "SUN")
     sun.theta, sun.phi = LOW_SUN_THETA, lights.DEFAULT_SUN["phi"]
     sun.angular_radius, sun.strength = lights.DEFAULT_SUN["angular_radius"], lights.DEFAULT_SUN["irradiance"]
-    bpy.ops.prt.light_add(kind="SKY")
-    scene.prt_lights[-1].strength = lights.DEFAULT_SKY
+    schema.add_light(scene, "SKY").strength = lights.DEFAULT_SKY
     scene.prt_display.window = "hanning"
 
 
@@ -507,7 +506,7 @@ def main(argv=None) -> int:
           f"{settings.reference_samples} samples at up to {settings.reference_points} points per case"
           + ("  (quick: the goals are for the full run)" if args.quick else ""), flush=True)
     rows, started, extra = [], time.perf_counter(), {}
-    with addon_registered():  # the spheres' SH lights are the add-on's properties
+    with schema_registered():  # the spheres' SH lights are saved settings (blender.schema)
         for case in cases:
             row, check, touching = measure(case, settings, log=lambda line: print(line, flush=True))
             rows.append(row)

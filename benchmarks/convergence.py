@@ -29,7 +29,7 @@ import numpy as np  # noqa: E402
 
 from prt_addon.blender import storage, validation  # noqa: E402
 from prt_addon.blender.scene_bake import SceneBake  # noqa: E402
-from prt_addon.commands.common import addon_registered, log, names, open_file, warn  # noqa: E402
+from prt_addon.commands.common import log, names, open_file, schema_registered, warn  # noqa: E402
 from prt_addon.core.bake import BakeSettings, unshadowed_norm  # noqa: E402
 from prt_addon.core.errors import InputError  # noqa: E402
 from prt_addon.core.progress import Job, Progress  # noqa: E402
@@ -260,7 +260,7 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv=None) -> int:
     args = build_parser().parse_args(argv)
     try:
-        with addon_registered():  # the scene's SH lights, which the Cycles reference shines
+        with schema_registered():  # the scene's SH lights, which the Cycles reference shines
             open_file(args.file, required=True)
             study = Study(bpy.context, args.samples, names(args.objects), args.order, args.reference,
                           args.reference_samples, args.workers, args.seed)

@@ -27,7 +27,7 @@ import bpy  # noqa: E402  (before mathutils, which the core uses)
 from browser import chromium, open_viewer  # noqa: E402
 from prt_addon.blender import gltf, sample_scenes  # noqa: E402
 from prt_addon.blender.scene_bake import SceneBake  # noqa: E402
-from prt_addon.commands.common import addon_registered  # noqa: E402
+from prt_addon.commands.common import schema_registered  # noqa: E402
 from prt_addon.commands.view import VIEWER, address, start_server, stop_server  # noqa: E402
 from prt_addon.core import bake  # noqa: E402
 
@@ -36,7 +36,7 @@ GOAL = 0.9
 
 def export_demo(path):
     """The demo scene baked and exported; without SH lights the export carries the default light (a sun, a sky)."""
-    with addon_registered():
+    with schema_registered():
         bpy.ops.wm.read_homefile(use_empty=True)
         sample_scenes.build_demo_scene()
         SceneBake(bpy.context, bake.BakeSettings(order=4, mode="shadowed", samples=64)).run(log=lambda line: None)

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from conftest import run_cli
+from prt_addon.blender import storage
 from test_relight import read_png
 
 SMALL = ("--engine", "WORKBENCH", "--resolution", "48x36")
@@ -57,6 +58,25 @@ def test_bake_saves_the_lights_so_the_file_relights_without_options(addon, sampl
     assert lights_of(path) == [("SUN", 30.0, 45.0, 3.0), ("SUN", 80.0, -90.0, 1.0), ("SKY", 0.25)]
     relit = run_cli("relight", path, *SMALL, "--render", tmp_path / "relit.png")
     assert relit.returncode == 0, relit.stderr
+
+
+def test_a_cli_bake_saves_the_colours_its_lights_give(addon, sample_scene_files, tmp_path):
+    """`prt bake` runs with the relighting handlers, so its file is saved with the PRT colours under the lights it
+    was given. A sky of radiance L is the DC coefficient 2√π·L alone (which no window tapers): each vertex's colour
+    is its DC transfer times that."""
+    path = tmp_path / "sky.blend"
+    result = run_cli("bake", sample_scene_files / "suzanne.blend", "--objects", "Plane", "--order", "2",
+                     "--samples", "16", "--sky", "0.5", "--output", path)
+    assert result.returncode == 0, result.stderr
+    bpy.ops.wm.open_mainfile(filepath=str(path), load_ui=False)
+    mesh = bpy.data.objects["Plane"].data
+    saved = np.empty(len(mesh.vertices) * 4, dtype=np.float32)
+    mesh.color_attributes["prt_color"].data.foreach_get("color", saved)
+    transfer, _ = storage.read_transfer(mesh)
+    expected = np.maximum(transfer[:, 0].astype(np.float64) * 2 * math.sqrt(math.pi) * 0.5, 0.0)  # grey albedo
+    assert expected.max() > 0.1  # lit, not black
+    np.testing.assert_allclose(saved.reshape(-1, 4)[:, :3], np.repeat(expected[:, None], 3, axis=1), rtol=1e-5,
+                               atol=1e-6)
 
 
 def test_a_files_lights_stay_unless_replaced(addon, baked_plane, tmp_path):

@@ -401,7 +401,8 @@ def test_prt_validate_image_from_the_command_line_writes_its_report_and_heatmap(
     assert out.returncode == 0, out.stderr
     assert "PRT validate --image: camera 'Camera', 24 × 18, " in out.stdout
     report = json.loads((tmp_path / "image.json").read_text())
-    assert report["resolution"] == [24, 18] and report["pixels"] > 50 and report["rel_rms_error"] >= 0.0
+    assert report["resolution"] == [24, 18] and report["pixels"] > 50
+    assert 0.0 <= report["rel_rms_error"] < 0.2  # the display shows the PRT colours: its relighting handlers ran
     assert (tmp_path / "error.png").exists()
     wrong = run_cli("validate", path, "--image", "--resolution", "24by18")
     assert wrong.returncode != 0 and "resolution must be WIDTHxHEIGHT, not '24by18'" in wrong.stderr

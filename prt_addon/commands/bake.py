@@ -15,6 +15,8 @@ from ..core.shards import Stopwatch, shard_of
 from . import farm_dask, light_options
 from .common import add_object_options, check_writable, log, object_names, open_file, save_bake, warn
 
+RELIGHTING = True  # the relighting handlers keep the saved file's PRT colours current with its SH lights
+
 
 def add_parser(commands):
     parser = commands.add_parser("bake", help="bake SH transfer into a .blend file's meshes")

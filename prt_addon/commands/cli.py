@@ -12,7 +12,7 @@ import bpy
 
 from ..core.errors import InputError
 from . import bake, demo, export, light_report, merge, relight, validate, view
-from .common import addon_registered
+from .common import schema_registered
 
 COMMAND_ID = "prt"
 # SIGTERM's exit code, 128 + 15 as a shell reports a process SIGTERM ended. The command returns it rather than
@@ -73,8 +73,9 @@ def main(argv, in_blender: bool = False) -> int:
     try:
         with terminated_as_interrupted():
             args = build_parser().parse_args(argv)
-            with addon_registered():
-                return COMMANDS[args.command].run(args, in_blender)
+            command = COMMANDS[args.command]
+            with schema_registered(relighting=getattr(command, "RELIGHTING", False)):
+                return command.run(args, in_blender)
     except SystemExit as leaving:  # --help
         return int(leaving.code or 0)
     except KeyboardInterrupt:  # Ctrl+C or a farm's SIGINT: nothing is saved before the work is done

@@ -1,5 +1,5 @@
-"""What several commands share: opening the file, names from a comma list, JSON reports, logging, and the add-on's
-registration for the bpy module."""
+"""What several commands share: opening the file, names from a comma list, JSON reports, logging, and registering
+the saved settings' schema and the relighting handlers for the bpy module."""
 
 import argparse
 from contextlib import contextmanager
@@ -13,20 +13,25 @@ from ..core.errors import InputError
 
 
 @contextmanager
-def addon_registered():
-    """With the bpy module the add-on is not enabled: registers it for the body (the scene's SH lights and display
-    switches are its properties, the relighting handlers its handlers), then unregisters it, also on failure.
-    Blender 4.5's module hangs (registered classes) or crashes (a registered command) at exit otherwise. Where the
-    add-on is already enabled (a real Blender, a test session), it is left as it is."""
-    if hasattr(bpy.types.Scene, "prt_lights"):
+def schema_registered(relighting: bool = False):
+    """With the bpy module the add-on is not enabled: registers the saved settings' schema (blender.schema: the
+    scene's bake settings, SH lights and display switches, each object's storage choice) for the body, and the
+    relighting handlers (blender.handlers) where the command relies on them to keep the PRT display current
+    (`relighting`); never a panel or an operator. Unregisters them after, also on failure: Blender 4.5's module
+    hangs at exit while classes stay registered. Where the add-on is enabled (a real Blender, a test session), it
+    has registered both, and they are left as they are."""
+    if hasattr(bpy.types.Scene, "prt_bake"):
         yield
         return
-    from .. import register, unregister
-    register()
+    from ..blender import handlers, schema
+    modules = (schema, handlers) if relighting else (schema,)
+    for module in modules:
+        module.register()
     try:
         yield
     finally:
-        unregister()
+        for module in reversed(modules):
+            module.unregister()
 
 
 def open_file(path, required: bool):

@@ -7,6 +7,8 @@ import bpy
 from ..blender.farm import merge_parts
 from .common import check_writable, log, open_file, save_bake, warn
 
+RELIGHTING = True  # the relighting handlers keep the saved file's PRT colours current with its SH lights
+
 
 def add_parser(commands):
     parser = commands.add_parser("merge", help="merge a farm's shard part files into one bake")

@@ -9,6 +9,8 @@ from ..blender.image_validation import DEFAULT_PASSES as IMAGE_PASSES, DEFAULT_R
 from ..blender.validation import DEFAULT_PASSES, DEFAULT_SAMPLES, REFERENCES, Validation
 from .common import add_object_options, log, object_names, open_file, warn, write_json
 
+RELIGHTING = True  # --image renders the PRT display, which the relighting handlers switch on and off
+
 
 def add_parser(commands):
     parser = commands.add_parser("validate", help="compare the PRT colours with Cycles under the same light")
