@@ -1,6 +1,7 @@
 """The rooms keep to their rules: core/ imports neither bpy (nor bmesh, gpu) nor anything above it, and nothing
-outside ui/ imports ui/ (only the package's register() does, to register it). The core's one dependency beyond
-numpy is mathutils' BVHTree, the ray caster."""
+outside ui/ imports ui/ or the package's register() (only that register() imports the interface, to register it):
+the commands and blender/ work with the saved settings' schema (blender.schema) alone. The core's one dependency
+beyond numpy is mathutils' BVHTree, the ray caster."""
 
 import ast
 from pathlib import Path
@@ -11,11 +12,12 @@ PACKAGE = Path(__file__).resolve().parents[1] / "prt_addon"
 BLENDER_MODULES = {"bpy", "bmesh", "gpu", "gpu_extras", "bpy_extras"}
 
 
-def imports(path: Path) -> set[str]:
-    """Absolute names of the modules a file imports (relative imports resolved within prt_addon)."""
+def imports(path: Path, source: str | None = None) -> set[str]:
+    """Absolute names of the modules and names a file (or `source` as if it were that file) imports, relative
+    imports resolved within prt_addon."""
     package = path.relative_to(PACKAGE.parent).with_suffix("").parts[:-1]
     found = set()
-    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8") if source is None else source)):
         if isinstance(node, ast.Import):
             found |= {alias.name for alias in node.names}
         elif isinstance(node, ast.ImportFrom):
@@ -37,14 +39,25 @@ def test_core_imports_no_blender_module_and_nothing_above_it(path):
     assert not [name for name in names if name.startswith("prt_addon.") and not name.startswith("prt_addon.core")]
 
 
+def interface_imports(names) -> list[str]:
+    """The names that reach the interface: ui/, or the package's register() and unregister(), which register it."""
+    return [name for name in names if name in ("prt_addon.ui", "prt_addon.register", "prt_addon.unregister")
+            or name.startswith("prt_addon.ui.")]
+
+
 @pytest.mark.parametrize("path", [p for p in modules() if "ui" not in p.relative_to(PACKAGE).parts[:-1]
                                   and p != PACKAGE / "__init__.py"], ids=lambda p: str(p.relative_to(PACKAGE)))
-def test_nothing_outside_ui_imports_ui(path):
-    assert not [name for name in imports(path) if name == "prt_addon.ui" or name.startswith("prt_addon.ui.")]
+def test_nothing_outside_ui_imports_ui_or_the_packages_register(path):
+    assert not interface_imports(imports(path))
 
 
 def test_the_rules_see_imports():
     """The scan resolves relative imports and sees imports inside functions."""
     assert "mathutils.bvhtree.BVHTree" in imports(PACKAGE / "core" / "bake.py")
-    assert "prt_addon.blender.relighting.Relighter" in imports(PACKAGE / "ui" / "handlers.py")
+    assert "prt_addon.blender.handlers.engine" in imports(PACKAGE / "ui" / "lights.py")
     assert "prt_addon.ui" in imports(PACKAGE / "__init__.py")
+    command = PACKAGE / "commands" / "common.py"
+    assert interface_imports(imports(command, "def f():\n    from .. import register")) == ["prt_addon.register"]
+    assert interface_imports(imports(command, "from .. import ui")) == ["prt_addon.ui"]
+    assert set(interface_imports(imports(PACKAGE / "blender" / "schema.py", "from ..ui.status import x"))) == {
+        "prt_addon.ui.status", "prt_addon.ui.status.x"}
