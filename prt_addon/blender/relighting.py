@@ -3,8 +3,8 @@ SH lights and display switches.
 
 One `Relighter` holds what makes a refresh cheap: the lights' projections (a light that did not move comes from
 the cache), each mesh's transfer read once per bake, and which light each mesh's colours were written for (a mesh
-is shaded again only when its light or its bake changed). The interface's handlers own one and call it; a command
-may use its own. Its own writes change nothing it watches, and a refresh never starts another.
+is shaded again only when its light or its bake changed). The relighting handlers (blender.handlers) own one and
+call it; a command may use its own. Its own writes change nothing it watches, and a refresh never starts another.
 """
 
 from contextlib import contextmanager
