@@ -72,32 +72,6 @@ def floor(size, cuts, name="Floor"):
     return ob
 
 
-def fixed_sphere(name, radius, centre, segments=32, rings=16):
-    """A smooth UV sphere built from its vertices and faces in a fixed order (Blender 5's primitive orders its
-    corners differently from one process to the next)."""
-    import bpy
-    polar = np.pi * np.arange(1, rings) / rings
-    azimuth = 2.0 * np.pi * np.arange(segments) / segments
-    ring = np.stack([np.outer(np.sin(polar), np.cos(azimuth)), np.outer(np.sin(polar), np.sin(azimuth)),
-                     np.repeat(np.cos(polar)[:, None], segments, axis=1)], axis=-1).reshape(-1, 3)
-    vertices = np.vstack([[0.0, 0.0, 1.0], ring, [0.0, 0.0, -1.0]]) * radius + np.array(centre)
-    bottom = len(vertices) - 1
-
-    def at(band, j):
-        return 1 + band * segments + j % segments
-
-    faces = [(0, at(0, j), at(0, j + 1)) for j in range(segments)]
-    faces += [(at(band, j), at(band + 1, j), at(band + 1, j + 1), at(band, j + 1))
-              for band in range(rings - 2) for j in range(segments)]
-    faces += [(bottom, at(rings - 2, j + 1), at(rings - 2, j)) for j in range(segments)]
-    mesh = bpy.data.meshes.new(name)
-    mesh.from_pydata(vertices.tolist(), [], faces)
-    mesh.shade_smooth()
-    ob = bpy.data.objects.new(name, mesh)
-    bpy.context.collection.objects.link(ob)
-    return ob
-
-
 def demo_scene():
     from prt_addon.blender import sample_scenes
     sample_scenes.build_demo_scene()
@@ -119,9 +93,13 @@ def cow_scene(cow: str):
 
 
 def texel_scene():
-    """A one-quad 4 × 4 floor (its UV map spans it) under a sphere of radius 0.5 at height 1.5."""
+    """A one-quad 4 × 4 floor (its UV map spans it) under a smooth 32 × 16 UV sphere of radius 0.5 at height 1.5,
+    built in a fixed corner order (benchmarks/assets.py's uv_sphere)."""
+    from benchmarks.assets import uv_sphere
     floor(4.0, 1)
-    fixed_sphere("Ball", 0.5, (0.0, 0.0, 1.5))
+    ball = uv_sphere("Ball", segments=32, rings=16)
+    ball.data.shade_smooth()
+    ball.scale, ball.location = (0.5, 0.5, 0.5), (0.0, 0.0, 1.5)
 
 
 def bakes(quick: bool, cow: str) -> dict:
