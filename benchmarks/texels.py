@@ -1,6 +1,6 @@
 """Texel storage: what it costs and what it buys.
 
-    .venv/bin/python benchmarks/texels.py [--part room|image|all] [--workers 2] [--resolution 1024]
+    .venv/bin/python benchmarks/texels.py [--part room|image|all] [--workers 2] [--resolution 1024] [--quick]
 
 room: the demo scene's floor and walls stored per texel at 1024 × 1024 (their own UV map), shadowed, order 4, to a
 1 % target error (256 samples, up to 4096): the bake's time (goal ≤ 60 s on 2 cores), its texels baked and
@@ -11,9 +11,14 @@ noise taken out.
 image: a sphere over a one-quad floor and over a 16 × 16 floor, baked with Storage Auto, Vertex and Texel (every
 object, resolution from the target error), each compared with Cycles from a camera (`prt validate --image`, 160 × 120, 2 × 64 samples): the image RMS error
 (goal ≤ 2 % with Auto) beside the vertex figure, to show what texels bought.
+
+--quick is a smoke run: the room at 64 × 64 to at most 64 samples against 100 texels per object at 1024, and the
+image part with Storage Auto only (its texel maps 32 × 32) on the one-quad floor, baked at 64 samples, Cycles 2 × 8
+samples at 40 × 30 (the goals are for the full run).
 """
 
 import argparse
+from dataclasses import dataclass, replace
 import math
 import os
 import sys
@@ -33,15 +38,35 @@ from prt_addon.core import bake, job  # noqa: E402
 
 ROOM_GOAL_S = 60.0
 IMAGE_GOAL = 0.02
-REFERENCE_TEXELS = 1000
-REFERENCE_SAMPLES = 8192
 ROOM_TEXELS = ("Floor", "BackWall", "LeftWall")
 
 
-def room(resolution, workers):
+@dataclass(frozen=True)
+class Sizes:
+    resolution: int         # room: texels along each side
+    room_samples: int       # room: first round of the 1 % target bake
+    room_max_samples: int   # room: its ray budget per point
+    reference_texels: int   # room: random texels per object in the reference
+    reference_samples: int  # room: the reference's rays per texel
+    floor_cuts: tuple       # image: the floors under the sphere (quads per side)
+    image_samples: int      # image: bake samples
+    cycles_samples: int     # image: Cycles samples per pass
+    cycles_passes: int
+    image_resolution: tuple
+    image_texels: int       # image: texels along each side of a map stored per texel (0: from the target error)
+    storages: tuple         # image: the Storage settings compared (the goal is Auto's)
+
+
+FULL = Sizes(1024, 256, 4096, 1000, 8192, (1, 16), 256, 64, 2, (160, 120), 0, ("vertex", "auto", "texel"))
+QUICK = Sizes(64, 32, 64, 100, 1024, (1,), 64, 8, 2, (40, 30), 32, ("auto",))
+
+
+def room(sizes: Sizes, workers):
     bpy.ops.wm.read_homefile(use_empty=True)
     sample_scenes.build_demo_scene()
-    settings = bake.BakeSettings(order=4, samples=256, target_error=0.01, max_samples=4096)
+    resolution = sizes.resolution
+    settings = bake.BakeSettings(order=4, samples=sizes.room_samples, target_error=0.01,
+                                 max_samples=sizes.room_max_samples)
     for name in ROOM_TEXELS:
         ob = bpy.data.objects[name]
         ob.prt_storage, ob.prt_resolution, ob.prt_uv_map = "texel", resolution, sample_scenes.UV_MAP
@@ -56,14 +81,14 @@ def room(resolution, workers):
     print(f"room: floor and walls at {resolution} × {resolution} ({texels:,} covered texels) + torus per vertex, "
           f"1 % target, {workers} workers: {seconds:.1f} s (gathering and checks included)   goal <= "
           f"{ROOM_GOAL_S:.0f} s   {verdict}")
-    actual, reference_noise = actual_error(scene_bake, settings, workers)
+    actual, reference_noise = actual_error(scene_bake, settings, workers, sizes)
     estimates = [summary.per_object[name]["est_rms_rel_error"] for name in ROOM_TEXELS]
-    print(f"room: actual RMS rel. error of the texel maps against the reference ({REFERENCE_TEXELS} texels per object "
-          f"at {REFERENCE_SAMPLES} samples, its own noise {reference_noise:.4f} taken out): {actual:.4f}; the bake "
+    print(f"room: actual RMS rel. error of the texel maps against the reference ({sizes.reference_texels} texels per "
+          f"object at {sizes.reference_samples} samples, its own noise {reference_noise:.4f} taken out): {actual:.4f}; the bake "
           f"estimated {math.sqrt(np.mean(np.square(estimates))):.4f} for them (RMS of the objects' estimates)")
 
 
-def actual_error(scene_bake, settings, workers):
+def actual_error(scene_bake, settings, workers, sizes: Sizes):
     """(RMS over random texels of the stored map against a high-sample bake of the same points, the reference's
     own RMS noise), both relative to the unshadowed transfer's norm."""
     rng = np.random.default_rng(7)
@@ -71,14 +96,15 @@ def actual_error(scene_bake, settings, workers):
     for ob, surface in zip(scene_bake.objects, scene_bake.surfaces.receivers):
         if not isinstance(surface, TexelSurface):
             continue
-        rows = rng.choice(len(surface.layout.texels), size=min(REFERENCE_TEXELS, len(surface.layout.texels)),
+        rows = rng.choice(len(surface.layout.texels), size=min(sizes.reference_texels, len(surface.layout.texels)),
                           replace=False)
         point = surface.receiver
         receivers.append(bake.Receiver(ob.name, point.positions[rows], point.normals[rows],
                                        bake.Receiver.key_for(ob.name + " reference"), point.inward[rows]))
         planes, _ = texel_maps.read_planes(ob.data)
         stored.append(planes[:, surface.layout.texels[rows]].T)
-    reference_settings = bake.BakeSettings(order=settings.order, samples=REFERENCE_SAMPLES, seed=settings.seed + 1)
+    reference_settings = bake.BakeSettings(order=settings.order, samples=sizes.reference_samples,
+                                           seed=settings.seed + 1)
     results = job.TransferJob(receivers, scene_bake.job.occluders, reference_settings, workers,
                               scene_bake.job.worker_command).run()
     scale = bake.unshadowed_norm(settings.order)
@@ -102,24 +128,29 @@ def sphere_over_floor(cuts):
     bpy.context.scene.camera = camera
 
 
-def image(workers):
-    for cuts, label in ((1, "one-quad floor"), (16, "16 × 16 floor")):
+def image(sizes: Sizes, workers):
+    for cuts in sizes.floor_cuts:
+        label = "one-quad floor" if cuts == 1 else f"{cuts} × {cuts} floor"
         errors = {}
-        for storage in ("vertex", "auto", "texel"):
+        for storage in sizes.storages:
             sphere_over_floor(cuts)
-            scene_bake = SceneBake(bpy.context, bake.BakeSettings(order=4, samples=256), ["Floor", "Ball"],
-                                   workers=workers, storage_options={"storage": storage})
+            scene_bake = SceneBake(bpy.context, bake.BakeSettings(order=4, samples=sizes.image_samples),
+                                   ["Floor", "Ball"], workers=workers,
+                                   storage_options={"storage": storage, "resolution": sizes.image_texels})
             summary = scene_bake.run()
-            report = validate_image(bpy.context, samples=64, passes=2, resolution=(160, 120))
+            report = validate_image(bpy.context, samples=sizes.cycles_samples, passes=sizes.cycles_passes,
+                                    resolution=sizes.image_resolution)
             errors[storage] = report.comparison
             chosen = "; ".join(scene_bake.storage_decisions) or "every object per vertex"
             print(f"image: sphere over a {label}, Storage {storage.title()}: bake {summary.time_s:.1f} s; {chosen}")
             print(f"  {report.line()}")
-        auto, vertex, texel = errors["auto"], errors["vertex"], errors["texel"]
+        auto = errors["auto"]
         verdict = "PASS" if auto.error <= IMAGE_GOAL else "MISS"
+        others = " and".join(f" {100 * errors[storage].error:.2f} % {what} (p99 {100 * errors[storage].p99:.1f} %)"
+                             for storage, what in (("vertex", "per vertex"), ("texel", "with every object per texel"))
+                             if storage in errors)
         print(f"image: sphere over a {label}: image RMS error {100 * auto.error:.2f} % with Auto (p99 "
-              f"{100 * auto.p99:.1f} %) against {100 * vertex.error:.2f} % per vertex (p99 {100 * vertex.p99:.1f} %)"
-              f" and {100 * texel.error:.2f} % with every object per texel (p99 {100 * texel.p99:.1f} %)   goal <= "
+              f"{100 * auto.p99:.1f} %){' against' + others if others else ''}   goal <= "
               f"{100 * IMAGE_GOAL:.0f} %   {verdict}")
 
 
@@ -127,16 +158,20 @@ def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--part", choices=("room", "image", "all"), default="all")
     parser.add_argument("--workers", type=int, default=2)
-    parser.add_argument("--resolution", type=int, default=1024, help="room: texels along each side")
+    parser.add_argument("--resolution", type=int, help="room: texels along each side (default 1024; --quick 64)")
+    parser.add_argument("--quick", action="store_true", help="a smoke run: small sizes, the goals are for the full run")
     args = parser.parse_args(argv)
+    sizes = QUICK if args.quick else FULL
+    if args.resolution:
+        sizes = replace(sizes, resolution=args.resolution)
     prt_addon.register()
-    print(f"texel benchmark: bpy {bpy.app.version_string}, {os.cpu_count()} cores, load average "
-          f"{os.getloadavg()[0]:.2f}")
+    print(f"texel benchmark{' (quick: the goals are for the full run)' if args.quick else ''}: bpy "
+          f"{bpy.app.version_string}, {os.cpu_count()} cores, load average {os.getloadavg()[0]:.2f}")
     try:
         if args.part in ("room", "all"):
-            room(args.resolution, args.workers)
+            room(sizes, args.workers)
         if args.part in ("image", "all"):
-            image(args.workers)
+            image(sizes, args.workers)
     finally:
         prt_addon.unregister()
     return 0
