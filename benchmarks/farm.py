@@ -2,7 +2,7 @@
 
 1. Shards' fixed work: the CPU time of the 4 processes of `prt bake --shard K/4` summed ÷ one process baking the
    whole scene, `--shard 1/4`'s twin `--shard 1/1` (the same command with the same fixed work), each command's
-   median CPU over SHARD_ROUNDS alternated rounds. Three figures:
+   median CPU over 3 alternated rounds (FULL). Three figures:
    (a) whole processes at 256 rays per vertex; (b) the bake commands alone at 256 rays, from the command's start
    inside its process to its part written (the part's cpu_s: the file opened, the scene gathered, the ray tree
    built, the bake, the part written: all the fixed work that is ours), which the goal judges; (c) whole processes
@@ -10,7 +10,7 @@
    module alone (`python -c "import bpy"`), which each process of (a) and (c) pays and (b) leaves out, and the
    merge's CPU.
 2. Dask: the wall time of `prt bake --dask local:2` (a LocalCluster of 2 workers, its start and the merge
-   included) ÷ `prt bake --workers 1`, alternated DASK_REPEATS times, the median of the paired ratios (other
+   included) ÷ `prt bake --workers 1`, alternated 3 times, the median of the paired ratios (other
    tenants' load cancels in a pair); whether both stored the same bits; and after each pair a machine check: how
    much longer two CPU-bound processes take together than one alone (0.5 on two free cores; other tenants raise
    it).
@@ -19,11 +19,13 @@ Every process runs with one BLAS thread (OPENBLAS_NUM_THREADS=1, as the README's
 with OpenBLAS's default of one thread per core its idle helper thread busy-waits beside the bake, which doubles a
 one-process bake's CPU seconds here without making it faster, and would count as work in (a)-(c).
 
-Run from the repository root:  .venv/bin/python benchmarks/farm.py [--part shards|dask] [--json PATH]
-(--part runs and prints only 1 or only 2).
+Run from the repository root:  .venv/bin/python benchmarks/farm.py [--part shards|dask] [--json PATH] [--quick]
+(--part runs and prints only 1 or only 2; --quick is a smoke run: the demo scene without its torus, 2 shards at 16
+and 32 rays, one round, one Dask pair; the goals are for the full run).
 """
 
 import argparse
+from dataclasses import asdict, dataclass
 import json
 import os
 import resource
@@ -40,13 +42,24 @@ import numpy as np  # noqa: E402
 
 from prt_addon.blender import sample_scenes, storage  # noqa: E402
 
-SETTINGS = ["--order", "4", "--mode", "shadowed", "--samples", "256", "--workers", "1"]
-FARM_SCALE_SAMPLES = 1024
-SHARDS = 4
-SHARD_ROUNDS = 3
+SETTINGS = ["--order", "4", "--mode", "shadowed", "--workers", "1"]
 ENVIRONMENT = dict(os.environ, PYTHONPATH=ROOT, OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1", MKL_NUM_THREADS="1")
-DASK_REPEATS = 3
 GOALS = {"shards_cpu_sum_to_one": 1.15, "dask_2_workers_to_one_wall": 0.65}
+
+
+@dataclass(frozen=True)
+class Config:
+    samples: int             # rays per vertex of (a), (b) and the Dask bakes
+    farm_scale_samples: int  # of (c)
+    shards: int
+    shard_rounds: int        # alternated rounds of the one process and the shards; medians over them
+    dask_repeats: int        # pairs of one process and Dask; median of their ratios
+    start_up_repeats: int    # `import bpy` alone; the median
+    check_iterations: int    # the machine check's fixed pure-Python work per process
+
+
+FULL = Config(256, 1024, 4, 3, 3, 3, 6_000_000)
+QUICK = Config(16, 32, 2, 1, 1, 1, 500_000)
 
 
 def prt(*arguments) -> tuple[float, float]:
@@ -69,29 +82,32 @@ def part_cpu_s(path) -> float:
         return json.loads(str(data["part"]))["cpu_s"]
 
 
-def demo_file(folder) -> str:
+def demo_file(folder, quick: bool) -> str:
+    """The demo scene saved in `folder`; --quick leaves its torus out (2,775 vertices: the processes' fixed work)."""
     bpy.ops.wm.read_homefile(use_empty=True)
     sample_scenes.build_demo_scene()
+    if quick:
+        bpy.data.objects.remove(bpy.data.objects["Torus"])
     path = os.path.join(folder, "demo.blend")
     bpy.ops.wm.save_as_mainfile(filepath=path)
     return path
 
 
-def shards_cpu(folder, scene, samples: int) -> dict:
-    """The one process and the 4 shards, alternated SHARD_ROUNDS times: each command's median CPU seconds (other
-    tenants' load, which slows a process's CPU too, then falls on both sides alike)."""
-    settings = [*SETTINGS[:SETTINGS.index("--samples") + 1], samples, *SETTINGS[SETTINGS.index("--samples") + 2:]]
-    shards = ["1/1"] + [f"{shard}/{SHARDS}" for shard in range(1, SHARDS + 1)]
+def shards_cpu(folder, scene, samples: int, config: Config) -> dict:
+    """The one process and the shards, alternated `config.shard_rounds` times: each command's median CPU seconds
+    (other tenants' load, which slows a process's CPU too, then falls on both sides alike)."""
+    settings = [*SETTINGS, "--samples", samples]
+    shards = ["1/1"] + [f"{shard}/{config.shards}" for shard in range(1, config.shards + 1)]
     parts = [os.path.join(folder, f"part-{shard.replace('/', '-of-')}-{samples}.npz") for shard in shards]
     process_cpu, bake_cpu = [[] for _ in shards], [[] for _ in shards]
-    for _ in range(SHARD_ROUNDS):
+    for _ in range(config.shard_rounds):
         for index, (shard, part) in enumerate(zip(shards, parts)):
             process_cpu[index].append(prt("bake", scene, "--shard", shard, "--out", part, *settings)[1])
             bake_cpu[index].append(part_cpu_s(part))
     _, merge_cpu = prt("merge", scene, *parts[1:], "--output", os.path.join(folder, "merged.blend"))
     process_cpu, bake_cpu = np.median(process_cpu, axis=1).tolist(), np.median(bake_cpu, axis=1).tolist()
     return {
-        "samples": samples, "rounds": SHARD_ROUNDS,
+        "samples": samples, "rounds": config.shard_rounds, "shards": config.shards,
         "one_process_cpu_s": process_cpu[0], "shard_process_cpu_s": process_cpu[1:],
         "shards_cpu_sum_to_one": sum(process_cpu[1:]) / process_cpu[0],
         "one_bake_cpu_s": bake_cpu[0], "shard_bake_cpu_s": bake_cpu[1:],
@@ -100,18 +116,19 @@ def shards_cpu(folder, scene, samples: int) -> dict:
     }
 
 
-def start_up_cpu_s() -> float:
-    """The CPU seconds of starting Python and importing the bpy module, nothing else: the median of three."""
-    return float(np.median([timed([sys.executable, "-c", "import bpy"])[1] for _ in range(3)]))
+def start_up_cpu_s(repeats: int) -> float:
+    """The CPU seconds of starting Python and importing the bpy module, nothing else: the median of `repeats`."""
+    return float(np.median([timed([sys.executable, "-c", "import bpy"])[1] for _ in range(repeats)]))
 
 
-def dask_wall(folder, scene) -> dict:
+def dask_wall(folder, scene, config: Config) -> dict:
     one, on_dask = os.path.join(folder, "one.blend"), os.path.join(folder, "dask.blend")
+    settings = [*SETTINGS, "--samples", config.samples]
     one_wall, dask_wall_s, checks = [], [], []
-    for _ in range(DASK_REPEATS):
-        one_wall.append(prt("bake", scene, *SETTINGS, "--output", one)[0])
-        dask_wall_s.append(prt("bake", scene, *SETTINGS, "--dask", "local:2", "--output", on_dask)[0])
-        checks.append(machine_check())
+    for _ in range(config.dask_repeats):
+        one_wall.append(prt("bake", scene, *settings, "--output", one)[0])
+        dask_wall_s.append(prt("bake", scene, *settings, "--dask", "local:2", "--output", on_dask)[0])
+        checks.append(machine_check(config.check_iterations))
     return {"one_process_wall_s": one_wall, "dask_2_workers_wall_s": dask_wall_s,
             "dask_2_workers_to_one_wall": float(np.median(np.divide(dask_wall_s, one_wall))),
             "bit_identical": stored_transfer(one) == stored_transfer(on_dask), "machine_check": checks}
@@ -123,9 +140,9 @@ def stored_transfer(path) -> dict:
             if ob.type == "MESH" and storage.METADATA_KEY in ob.data}
 
 
-def machine_check() -> float:
+def machine_check(iterations: int) -> float:
     """Wall time of two CPU-bound processes at once ÷ one alone: 0.5 on two free cores."""
-    busy = [sys.executable, "-c", "sum(i * i for i in range(6_000_000))"]
+    busy = [sys.executable, "-c", f"sum(i * i for i in range({iterations}))"]
     start = time.perf_counter()
     subprocess.run(busy, check=True)
     alone = time.perf_counter() - start
@@ -139,16 +156,21 @@ def main():
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--part", choices=["shards", "dask"], help="run only 1 (shards) or only 2 (dask)")
     parser.add_argument("--json", help="also write the numbers here")
+    parser.add_argument("--quick", action="store_true", help="a smoke run: " + ", ".join(
+        f"{name} {value}" for name, value in asdict(QUICK).items()))
     args = parser.parse_args()
-    results = {}
+    config = QUICK if args.quick else FULL
+    results = {"config": asdict(config)}
     with tempfile.TemporaryDirectory(prefix="prt_farm_bench_") as folder:
-        scene = demo_file(folder)
+        scene = demo_file(folder, args.quick)
         if args.part != "dask":
-            results.update(start_up_cpu_s=start_up_cpu_s(), shards=shards_cpu(folder, scene, 256),
-                           shards_farm_scale=shards_cpu(folder, scene, FARM_SCALE_SAMPLES))
+            results.update(start_up_cpu_s=start_up_cpu_s(config.start_up_repeats),
+                           shards=shards_cpu(folder, scene, config.samples, config),
+                           shards_farm_scale=shards_cpu(folder, scene, config.farm_scale_samples, config))
         if args.part != "shards":
-            results["dask"] = dask_wall(folder, scene)
-    print(f"demo scene, order 4 shadowed; {os.cpu_count()} cores; one BLAS thread per process")
+            results["dask"] = dask_wall(folder, scene, config)
+    print(f"demo scene{' without its torus' if args.quick else ''}, order 4 shadowed; {os.cpu_count()} cores; one "
+          f"BLAS thread per process" + ("  (quick: the goals are for the full run)" if args.quick else ""))
     if "shards" in results:
         print_shards(results)
     if "dask" in results:
@@ -160,20 +182,21 @@ def main():
 
 def print_shards(results: dict):
     shards, farm_scale = results["shards"], results["shards_farm_scale"]
-    print(f"1. shards' CPU, {SHARDS} shards ÷ one process ({GOALS['shards_cpu_sum_to_one']:.2f} goal, judged on (b)), "
-          f"medians of {SHARD_ROUNDS} alternated rounds:")
-    print(f"   (a) whole processes, 256 rays    {whole(shards)}")
-    print(f"   (b) bake commands, 256 rays      {sum(shards['shard_bake_cpu_s']):6.2f} s ÷ {shards['one_bake_cpu_s']:6.2f} s"
+    print(f"1. shards' CPU, {shards['shards']} shards ÷ one process ({GOALS['shards_cpu_sum_to_one']:.2f} goal, judged "
+          f"on (b)), medians of {shards['rounds']} alternated rounds:")
+    print(f"   (a) whole processes, {shards['samples']} rays    {whole(shards)}")
+    print(f"   (b) bake commands, {shards['samples']} rays      {sum(shards['shard_bake_cpu_s']):6.2f} s ÷ "
+          f"{shards['one_bake_cpu_s']:6.2f} s"
           f" = {shards['shard_bakes_cpu_sum_to_one']:.3f}  {verdict(shards['shard_bakes_cpu_sum_to_one'], 'shards_cpu_sum_to_one')}"
           f"   (each {seconds(shards['shard_bake_cpu_s'])}; from the command's start to its part written)")
-    print(f"   (c) whole processes, {FARM_SCALE_SAMPLES} rays  {whole(farm_scale)}")
+    print(f"   (c) whole processes, {farm_scale['samples']} rays  {whole(farm_scale)}")
     print(f"   Python + bpy start-up alone      {results['start_up_cpu_s']:6.2f} s CPU per process, in (a) and (c), "
-          f"not in (b); merge process {shards['merge_process_cpu_s']:.2f} s CPU (256 rays)")
+          f"not in (b); merge process {shards['merge_process_cpu_s']:.2f} s CPU ({shards['samples']} rays)")
 
 
 def print_dask(dask: dict):
     print(f"2. Dask LocalCluster, 2 workers ÷ one process, wall ({GOALS['dask_2_workers_to_one_wall']:.2f} goal), "
-          f"median of {DASK_REPEATS} pairs: {dask['dask_2_workers_to_one_wall']:.3f}  "
+          f"median of {len(dask['one_process_wall_s'])} pairs: {dask['dask_2_workers_to_one_wall']:.3f}  "
           f"{verdict(dask['dask_2_workers_to_one_wall'], 'dask_2_workers_to_one_wall')}")
     print(f"   Dask {seconds(dask['dask_2_workers_wall_s'])}; one process {seconds(dask['one_process_wall_s'])}; "
           f"ratios {', '.join(f'{d / o:.3f}' for d, o in zip(dask['dask_2_workers_wall_s'], dask['one_process_wall_s']))}")
