@@ -3,7 +3,7 @@ actual error, as a CSV and a log-log plot against bake time.
 
     .venv/bin/python benchmarks/convergence.py FILE [--samples 16,32,...] [--objects A,B] [--order 4]
         [--reference bake|cycles] [--reference-samples N] [--workers N] [--seed 0]
-        [--csv convergence.csv] [--plot convergence.png]
+        [--csv convergence.csv] [--plot convergence.png] [--quick]
 
 The reference is, by default, a bake at 16 × the largest count with another seed. The actual error is then in the
 estimate's own measure, RMS over vertices of ‖T − T_ref‖ ÷ ‖T_unshadowed‖, so the two curves say directly whether
@@ -11,6 +11,9 @@ the estimate is honest; the reference's own error adds to it in quadrature, and 
 With the Cycles reference (blender.validation), the actual error is the RMS relative error of the radiance under
 the scene's light, Cycles' noise taken out: a measure of what one sees under that light, not the same measure as
 the estimate, which covers any light.
+
+--quick is a smoke run of seconds on a small FILE (or --objects): 16 and 32 samples against a 256-sample reference
+(options given override it).
 """
 
 import argparse
@@ -37,6 +40,7 @@ from prt_addon.core.settings import MOST_SAMPLES  # noqa: E402
 from prt_addon.core.statistics import rms  # noqa: E402
 
 DEFAULT_SAMPLES = [16 << step for step in range(9)]  # 16, 32, ..., 4096
+QUICK_SAMPLES, QUICK_REFERENCE_SAMPLES = [16, 32], 256
 REFERENCE_FACTOR = 16
 REFERENCE_SEED_OFFSET = 1_000_003  # the reference must be randomised independently of what it judges
 # For the time left only: one Cycles sample costs about as much as ten bake rays (demo scene, 2 cores).
@@ -240,7 +244,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(description="bake at several sample counts; estimated and actual error "
                                                  "against bake time as CSV and a PNG plot")
     parser.add_argument("file", help=".blend file")
-    parser.add_argument("--samples", type=sample_counts, default=DEFAULT_SAMPLES, metavar="16,32,...",
+    parser.add_argument("--samples", type=sample_counts, metavar="16,32,...",
                         help="rays per vertex of each bake (default 16,32,...,4096)")
     parser.add_argument("--objects", help="comma-separated receiver names (default: every visible mesh)")
     parser.add_argument("--order", type=int, default=4, help="SH bands, 1-10")
@@ -254,11 +258,16 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--csv", default="convergence.csv", help="where to write the table")
     parser.add_argument("--plot", default="convergence.png", help="where to write the log-log plot")
+    parser.add_argument("--quick", action="store_true", help=f"a smoke run: --samples "
+                        f"{','.join(map(str, QUICK_SAMPLES))} --reference-samples {QUICK_REFERENCE_SAMPLES}")
     return parser
 
 
 def main(argv=None) -> int:
     args = build_parser().parse_args(argv)
+    args.samples = args.samples or (QUICK_SAMPLES if args.quick else DEFAULT_SAMPLES)
+    if args.quick and args.reference == "bake":
+        args.reference_samples = args.reference_samples or QUICK_REFERENCE_SAMPLES
     try:
         with schema_registered():  # the scene's SH lights, which the Cycles reference shines
             open_file(args.file, required=True)

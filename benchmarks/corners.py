@@ -1,7 +1,7 @@
 """What shading-aware transfer costs, measured side by side in one run.
 
     .venv/bin/python benchmarks/corners.py [--asset ../shared/assets/cow.obj] [--against REV] [--repeats 3]
-        [--bakes 3] [--json PATH]
+        [--bakes 3] [--json PATH] [--quick]
 
 1. Flat ÷ smooth at equal estimated error: the asset imported as a user would (OBJ without normals: flat-shaded)
    and the same mesh after Shade Smooth. The smooth mesh bakes shadowed at the defaults (order 4, 256 samples);
@@ -17,6 +17,8 @@ pairs of bakes taken in turn, and the ratio of the two sides' fastest bakes is p
 Both compare the transfer bake: what other issues added to every bake since REV is timed apart and printed: the
 probes between vertices (#14's interpolation estimate, about 6 % more rays) with their placing, and the
 fingerprints stored for the stale check (#16).
+--quick is a smoke run: one process of one pair for each comparison (give a small --asset; the goals are for the
+full run).
 """
 
 import argparse
@@ -158,13 +160,17 @@ def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--asset", default=DEFAULT_ASSET, help="an OBJ without normals (imports flat-shaded)")
     parser.add_argument("--against", default=BEFORE_SHADING_AWARE, help="git revision for the smooth bake")
-    parser.add_argument("--repeats", type=int, default=3, help="fresh processes, each baking both sides in turn")
-    parser.add_argument("--bakes", type=int, default=3, help="bakes of each side in each process")
+    parser.add_argument("--repeats", type=int, help="fresh processes, each baking both sides in turn (default 3; "
+                        "--quick 1)")
+    parser.add_argument("--bakes", type=int, help="bakes of each side in each process (default 3; --quick 1)")
     parser.add_argument("--json", metavar="PATH")
+    parser.add_argument("--quick", action="store_true", help="a smoke run: --repeats 1 --bakes 1")
     args = parser.parse_args(argv)
+    args.repeats = args.repeats or (1 if args.quick else 3)
+    args.bakes = args.bakes or (1 if args.quick else 3)
     asset = os.path.abspath(args.asset)
     print(f"asset {os.path.basename(asset)}, order 4, shadowed, {args.repeats} processes of {args.bakes} pairs of "
-          f"bakes taken in turn")
+          f"bakes taken in turn" + ("  (quick: the goals are for the full run)" if args.quick else ""))
 
     flat_256, smooth_256 = bake(asset, [side("flat"), side("smooth")])
     samples, tried = equal_error_samples(asset, smooth_256["est"], flat_256["est"])

@@ -1,6 +1,8 @@
 """Peak memory of a 1 M-vertex shadowed bake, as a multiple of the transfer it stores.
 
-    .venv/bin/python benchmarks/memory.py [--side 1000] [--samples 16]
+    .venv/bin/python benchmarks/memory.py [--side 1000] [--samples 16] [--quick]
+
+(--quick: a 100 × 100 grid, a smoke run of seconds; the ratio then holds mostly Blender's fixed overhead.)
 
 The bake streams fixed 128-vertex chunks, casting at most 65,536 rays at a time, so rays never pile up: what
 it holds for the whole mesh is the receiver's positions and normals, the transfer and its error. The printed ratio is
@@ -69,12 +71,17 @@ def build_grid(side: int):
     return grid
 
 
-def main():
+QUICK_SIDE = 100
+
+
+def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--side", type=int, default=1000, help="grid side: side² vertices (default 1 M)")
+    parser.add_argument("--side", type=int, help="grid side: side² vertices (default 1000: 1 M; --quick 100)")
     parser.add_argument("--samples", type=int, default=16)
     parser.add_argument("--order", type=int, default=4)
-    args = parser.parse_args()
+    parser.add_argument("--quick", action="store_true", help=f"a smoke run on a {QUICK_SIDE} × {QUICK_SIDE} grid")
+    args = parser.parse_args(argv)
+    args.side = args.side or (QUICK_SIDE if args.quick else 1000)
     bpy.ops.wm.read_homefile(use_empty=True)
     grid = build_grid(args.side)
     vertices = len(grid.data.vertices)

@@ -1,6 +1,6 @@
 """Relighting speed: from a light change to the colour attribute written, through the real depsgraph handler.
 
-    .venv/bin/python benchmarks/relight.py [--steps 60] [--json PATH]
+    .venv/bin/python benchmarks/relight.py [--steps 60] [--json PATH] [--texels | --texels-only] [--quick]
 
 For grids of 10 k, 100 k and 1 M vertices baked at order 4 (unshadowed: the timing does not depend on the
 transfer's values), it changes lights' θ, runs `view_layer.update()` and measures the time until the handler has
@@ -18,6 +18,9 @@ to the shaded image written (one product per texel, float32 foreach_set on its p
 the write, against the same goal of 33 ms. Beside it, the handler's cost of the alternative (the display material
 forming the dot product on the GPU from the coefficient maps): setting the summed light's 3 × 16 values on its
 nodes; the GPU's own per-pixel work cannot be timed without a display.
+
+--quick is a smoke run of seconds: grids of 100, 1,000 and 10,000 vertices, a 128 × 128 texel map and 5 updates
+each (the goals are for the full run).
 """
 
 import argparse
@@ -41,6 +44,8 @@ from prt_addon.blender.scene_bake import SceneBake  # noqa: E402
 from prt_addon.core import bake  # noqa: E402
 
 SIDES = (100, 317, 1000)  # grid side: 10 k, 100 k and 1 M vertices
+QUICK_SIDES = (10, 32, 100)
+QUICK_STEPS = 5
 ORDERS = (4, 8, 16)  # the 1 M-vertex update at each
 LIGHTS = 8
 GOAL_MS = 33.0
@@ -117,11 +122,11 @@ def measure(scene, steps, clock):
     return medians
 
 
-def order_costs(steps, clock):
-    """{order: (median ms of a 1-light update, stored transfer MB)} on the largest grid."""
+def order_costs(side, steps, clock):
+    """{order: (median ms of a 1-light update, stored transfer MB)} on the side × side grid."""
     costs = {}
     for order in ORDERS:
-        mesh = baked_grid(SIDES[-1], order).data
+        mesh = baked_grid(side, order).data
         stored = sum(a.data_type == "FLOAT_VECTOR" and a.name.startswith("_prt_t") for a in mesh.attributes)
         set_light_count(bpy.context.scene, 1)
         times = [timed_update(bpy.context.scene.prt_lights[:1], 0.2 + 1.2 * ((step * 0.37) % 1.0), clock)[0]
@@ -131,7 +136,7 @@ def order_costs(steps, clock):
     return costs
 
 
-TEXEL_SIDE = 1024
+TEXEL_SIDE, QUICK_TEXEL_SIDE = 1024, 128
 
 
 def baked_texel_floor(side=TEXEL_SIDE):
@@ -163,10 +168,10 @@ class ShadeClock:
         texel_maps.write_shaded = self._shade
 
 
-def measure_texels(steps):
-    """Median ms from a light change to the 1024² shaded image written, of the shading alone and the pixel write
+def measure_texels(steps, side=TEXEL_SIDE):
+    """Median ms from a light change to the side² shaded image written, of the shading alone and the pixel write
     alone, and of setting 48 node values (the GPU alternative's handler work)."""
-    floor = baked_texel_floor()
+    floor = baked_texel_floor(side)
     scene = bpy.context.scene
     scene.prt_display.show_prt = True
     set_light_count(scene, 1)
@@ -200,17 +205,20 @@ def verdict(met):
 
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--steps", type=int, default=60, help="timed updates per configuration")
+    parser.add_argument("--steps", type=int, help="timed updates per configuration (default 60; --quick 5)")
     parser.add_argument("--json", metavar="PATH", help="also write the numbers as JSON")
     parser.add_argument("--texels", action="store_true", help="also time a 1024 × 1024 texel map")
     parser.add_argument("--texels-only", action="store_true", help="time only the 1024 × 1024 texel map")
+    parser.add_argument("--quick", action="store_true", help="a smoke run on small grids and a small texel map")
     args = parser.parse_args(argv)
+    args.steps = args.steps or (QUICK_STEPS if args.quick else 60)
+    sides, texel_side = (QUICK_SIDES, QUICK_TEXEL_SIDE) if args.quick else (SIDES, TEXEL_SIDE)
     prt_addon.register()
     print(f"relight benchmark: bpy {bpy.app.version_string}, {os.cpu_count()} cores, "
           f"load average {os.getloadavg()[0]:.2f}")
     if args.texels or args.texels_only:
-        ms = measure_texels(args.steps)
-        print(f"texels {TEXEL_SIDE} × {TEXEL_SIDE}, order 4, median of {args.steps} updates: light change to shaded "
+        ms = measure_texels(args.steps, texel_side)
+        print(f"texels {texel_side} × {texel_side}, order 4, median of {args.steps} updates: light change to shaded "
               f"image {ms['update']:.1f} ms (shading {ms['shade']:.1f} ms, pixel write {ms['write']:.1f} ms)   goal <= "
               f"{GOAL_MS:.0f} ms   {verdict(ms['update'] <= GOAL_MS)}")
         print(f"  GPU alternative's handler: 48 light values set on nodes in {ms['gpu_values']:.2f} ms")
@@ -223,14 +231,14 @@ def main(argv=None):
     results = {}
     gc.disable()  # a collection in the middle of a timed update says nothing about relighting
     with WriteClock() as clock:
-        for side in SIDES:
+        for side in sides:
             vertices = len(baked_grid(side).data.vertices)
             ms = measure(bpy.context.scene, args.steps, clock)
             results[vertices] = ms
             print(f"{vertices:>10,} {ms['one']:>7.2f}ms {ms['eight_one']:>10.2f}ms {ms['ratio_one_moving']:>6.2f}"
                   f" {ms['eight_all']:>11.2f}ms {ms['ratio_all_moving']:>6.2f} {ms['full']:>10.2f}ms")
             gc.collect()
-        costs = order_costs(max(5, args.steps // 6), clock)
+        costs = order_costs(sides[-1], max(5, args.steps // 6), clock)
     gc.enable()
     prt_addon.unregister()
     largest = max(results)
