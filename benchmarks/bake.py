@@ -27,6 +27,7 @@ import numpy as np  # noqa: E402
 
 from prt_addon.blender import sample_scenes  # noqa: E402
 from prt_addon.blender.scene_bake import SceneBake, worker_launch  # noqa: E402
+from prt_addon.commands.common import schema_registered  # noqa: E402
 from prt_addon.core import bake, job, sh  # noqa: E402
 
 ORDER = 4
@@ -539,4 +540,5 @@ def main(argv=None):
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    with schema_registered():  # each object's storage choice, which the bake reads, is a schema property
+        sys.exit(main())

@@ -41,7 +41,7 @@ REPLICATES = 4  # core.bake.BakeSettings.replicates: samples are split evenly ov
 # JSON. A side is [folder holding the add-on's package, the package's name, shading, samples]: an older revision's
 # add-on is imported under another name beside this checkout's (its imports are relative), so both bake in one process.
 BAKE_SCRIPT = r"""
-import importlib, json, sys, time
+import contextlib, importlib, json, sys, time
 asset, sides, bakes = sys.argv[1], json.loads(sys.argv[2]), int(sys.argv[3])
 import bpy
 # Other issues' fixed work in a bake, timed apart like the probes' bake where a revision has it: the fingerprints
@@ -68,7 +68,13 @@ def load(folder, package):
             time_apart(importlib.import_module(package + module), name)
         except ImportError:  # a revision before them
             pass
+    # The saved settings' schema (each object's storage choice, which the bake reads), where a revision has one; a
+    # second package finds it registered and leaves it.
+    schema_registered = getattr(importlib.import_module(package + ".commands.common"), "schema_registered", None)
+    if schema_registered is not None:
+        registered.enter_context(schema_registered())
     return scene_bake.SceneBake, importlib.import_module(package + ".core.bake").BakeSettings
+registered = contextlib.ExitStack()
 bakers = {(folder, package): load(folder, package) for folder, package, _, _ in sides}
 times_s, results = [[] for _ in sides], [None] * len(sides)
 # Where sides are compared, a first bake of each, untimed, warms the process (modules imported on first use, numpy's
@@ -93,6 +99,7 @@ for turn in range(-1 if len(sides) > 1 else 0, bakes):
             times_s[index].append(time.perf_counter() - start - probes_s - apart_s[0])
         results[index] = {"probes_s": probes_s, "apart_s": apart_s[0], "rays": summary.rays,
                           "est": summary.est_rms_rel_error, "line": summary.line()}
+registered.close()
 print(json.dumps([dict(result, times_s=times) for result, times in zip(results, times_s)]))
 """
 

@@ -23,6 +23,7 @@ import bake as bench  # noqa: E402  (benchmarks/bake.py: the scene, picks, refer
 import numpy as np  # noqa: E402
 
 from prt_addon.core import bake  # noqa: E402
+from prt_addon.commands.common import schema_registered  # noqa: E402
 
 SAMPLES = 256
 RAY_COUNTS = (128, 256, 512, 1024, 2048)
@@ -115,4 +116,5 @@ def main(argv=None):
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    with schema_registered():  # each object's storage choice, which the bake reads, is a schema property
+        sys.exit(main())

@@ -23,6 +23,7 @@ import numpy as np  # noqa: E402
 
 from prt_addon.blender.scene_bake import SceneBake  # noqa: E402
 from prt_addon.core.bake import BakeSettings  # noqa: E402
+from prt_addon.commands.common import schema_registered  # noqa: E402
 
 
 def resident_bytes() -> int:
@@ -104,4 +105,5 @@ def main(argv=None):
 
 
 if __name__ == "__main__":
-    main()
+    with schema_registered():  # each object's storage choice, which the bake reads, is a schema property
+        sys.exit(main())
