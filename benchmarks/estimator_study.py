@@ -20,7 +20,7 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import bake as bench  # noqa: E402  (benchmarks/bake.py: the scene, picks, reference and seed estimator)
 import numpy as np  # noqa: E402
 
-from prt_addon.core import bake  # noqa: E402
+from prt_addon.core import bake, lobes, ray_caster  # noqa: E402
 
 SAMPLES = 256
 RAY_COUNTS = (128, 256, 512, 1024, 2048)
@@ -78,7 +78,7 @@ def uneven_rays(per_vertex, estimated, seed_error):
 
 def target_honesty(receivers, occluders, picks, reference):
     print("\n4. Target error 0.01 (relative): does the estimate still tell the truth when it decides where to stop?")
-    scale = bake.unshadowed_norm(bench.ORDER)
+    scale = lobes.unshadowed_norm(bench.ORDER)
     for replicates in (2, 4):
         settings = bake.BakeSettings(samples=SAMPLES, replicates=replicates, target_error=0.01, max_samples=16384)
         actual, estimated = errors(settings, receivers, occluders, picks, reference)
@@ -89,7 +89,7 @@ def target_honesty(receivers, occluders, picks, reference):
 
 def main():
     receivers, occluders = bench.scene_geometry()
-    caster = bake.RayCaster(occluders)
+    caster = ray_caster.RayCaster(occluders)
     picks = bench.pick_vertices(caster, receivers, bench.FULL.error_vertices, None, True,
                                 np.random.default_rng(bench.PICK_SEED))
     reference = bench.reference_transfer(receivers, occluders, picks, bench.FULL)["transfer"]
