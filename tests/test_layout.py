@@ -1,7 +1,8 @@
 """The rooms keep to their rules: core/ imports neither bpy (nor bmesh, gpu) nor anything above it, and nothing
 outside ui/ imports ui/ or the package's register() (only that register() imports the interface, to register it):
 the commands and blender/ work with the saved settings' schema (blender.schema) alone. In the core only the BVHTree
-ray engine (core/engines/bvhtree.py) imports mathutils; the rest is numpy."""
+ray engine (core/engines/bvhtree.py) imports mathutils; the rest is numpy. No module imports itself through others:
+prt_addon's import graph, imports inside functions included, has no cycle."""
 
 import ast
 from pathlib import Path
@@ -74,3 +75,53 @@ def test_the_rules_see_imports():
     assert interface_imports(imports(command, "from .. import ui")) == ["prt_addon.ui"]
     assert set(interface_imports(imports(PACKAGE / "blender" / "schema.py", "from ..ui.status import x"))) == {
         "prt_addon.ui.status", "prt_addon.ui.status.x"}
+
+
+def module_of(path: Path) -> str:
+    parts = path.relative_to(PACKAGE.parent).with_suffix("").parts
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+def import_graph() -> dict[str, set[str]]:
+    """Each prt_addon module → the prt_addon modules it imports, inside functions too: `from m import x` imports
+    m.x where that is a module, else m (x is a name m defines)."""
+    known = {module_of(path) for path in modules()}
+    graph = {}
+    for path in modules():
+        targets = set()
+        for module, names in import_statements(path):
+            targets |= {f"{module}.{name}" if f"{module}.{name}" in known else module for name in names} or {module}
+        graph[module_of(path)] = targets & known
+    return graph
+
+
+def cycles(graph: dict[str, set[str]]) -> set[frozenset]:
+    """The modules of each cycle of `graph`: every set of modules that all reach each other (a module importing
+    itself alone)."""
+    reach = {}
+    for start in graph:
+        seen, todo = set(), list(graph[start])
+        while todo:
+            module = todo.pop()
+            if module not in seen:
+                seen.add(module)
+                todo.extend(graph.get(module, ()))
+        reach[start] = seen
+    return {frozenset(other for other in graph if other in reach[module] and module in reach[other])
+            for module in graph if module in reach[module]}
+
+
+def test_no_module_imports_itself_through_others():
+    assert cycles(import_graph()) == set()
+
+
+def test_the_graph_and_the_cycle_check_see_cycles():
+    """Teeth: a cycle of three with a module hanging off it is found, alone; and the real graph holds a cycle once
+    the core's plain values import the estimator that imports them, or storage the texel maps that import it."""
+    assert cycles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}, "e": {"e"}}) == {frozenset("abc"), frozenset("e")}
+    graph = import_graph()
+    graph["prt_addon.core.bake"].add("prt_addon.core.estimator")
+    graph["prt_addon.blender.storage"].add("prt_addon.blender.texel_maps")
+    found = cycles(graph)
+    assert any({"prt_addon.core.bake", "prt_addon.core.estimator"} <= cycle for cycle in found)
+    assert frozenset({"prt_addon.blender.storage", "prt_addon.blender.texel_maps"}) in found
