@@ -28,7 +28,7 @@ import numpy as np  # noqa: E402
 from prt_addon.blender import sample_scenes  # noqa: E402
 from prt_addon.blender.scene_bake import SceneBake, worker_launch  # noqa: E402
 from prt_addon.commands.common import schema_registered  # noqa: E402
-from prt_addon.core import bake, job, sh  # noqa: E402
+from prt_addon.core import bake, estimator, job, lobes, ray_caster, scheduling, sh  # noqa: E402
 
 ORDER = 4
 COMPARED_SAMPLES = 256
@@ -112,7 +112,7 @@ class Picks:
 
 def provably_unoccluded(caster, receiver):
     """The bake's own test: these vertices get the exact transfer without rays, so zero error."""
-    return bake.provably_unoccluded(receiver.positions - caster.center, receiver.normals, caster.hull,
+    return estimator.provably_unoccluded(receiver.positions - caster.center, receiver.normals, caster.hull,
                                     caster.offset)
 
 
@@ -168,8 +168,8 @@ def bake_picks(receivers, occluders, picks, settings, workers=1):
 
 # -- 1. ray-cast efficiency -------------------------------------------------------------------------------
 class RecordingTree:
-    """Stands in for the caster's BVHTree while a chunk is recorded: keeps every ray the caster casts through it,
-    whatever the caster's own methods take, and casts it."""
+    """Stands in for the BVHTree engine's tree while a chunk is recorded: keeps every ray the engine casts through
+    it, whatever the engine's own methods take, and casts it."""
 
     def __init__(self, tree):
         self.tree = tree
@@ -208,13 +208,14 @@ def cast_benchmark_receiver(receivers, count):
 def recorded_rays(caster, receiver, rows, settings):
     """The rays the bake of one chunk casts, as Python lists: one origin and one direction per ray."""
     recorder = copy.copy(caster)
-    recorder.tree = RecordingTree(caster.tree)
-    drain(bake.bake_chunk(recorder, receiver, rows, settings))
-    return recorder.tree.origins, recorder.tree.directions
+    recorder.engine = copy.copy(caster.engine)
+    recorder.engine.tree = RecordingTree(caster.engine.tree)
+    drain(estimator.bake_chunk(recorder, receiver, rows, settings))
+    return recorder.engine.tree.origins, recorder.engine.tree.directions
 
 
 def time_bare_loop(caster, origins, directions):
-    cast, distance = caster.tree.ray_cast, caster.max_distance
+    cast, distance = caster.engine.tree.ray_cast, caster.engine.max_distance
     start = time.perf_counter()
     for o, d in zip(origins, directions):
         cast(o, d, distance)
@@ -223,7 +224,7 @@ def time_bare_loop(caster, origins, directions):
 
 def time_bake_chunk(caster, receiver, rows, settings):
     began = time.perf_counter()
-    rays = drain(bake.bake_chunk(caster, receiver, rows, settings))
+    rays = drain(estimator.bake_chunk(caster, receiver, rows, settings))
     return time.perf_counter() - began, rays
 
 
@@ -234,7 +235,7 @@ def ray_cast_efficiency(caster, receivers, config):
     times (luckiest moments of each, not necessarily the same moments) is printed as a cross-check."""
     receiver = cast_benchmark_receiver(receivers, config.cast_vertices)
     settings = bake.BakeSettings(order=ORDER, samples=COMPARED_SAMPLES)
-    chunks = [rows for _, rows in bake.chunk_rows([receiver])]
+    chunks = [rows for _, rows in scheduling.chunk_rows([receiver])]
     replays = [recorded_rays(caster, receiver, rows, settings) for rows in chunks]
     rays = sum(len(directions) for _, directions in replays)
     gc.collect()
@@ -262,7 +263,7 @@ def ray_cast_efficiency(caster, receivers, config):
 # -- 2. estimator error -----------------------------------------------------------------------------------
 def seed_estimator(caster, positions, normals, inward, rays, rng):
     """The original program's SHBuilder: uniform random directions over the whole sphere, weight 4π/N, here in our
-    convention T_k = (1/π)(4π/N) Σ V·max(n·ω, 0)·Y_k. V is the bake's own (caster.occluded), from the
+    convention T_k = (1/π)(4π/N) Σ V·max(n·ω, 0)·Y_k. V is the bake's own (its ray engine's), from the
     origins shadowed_chunk uses, so only the estimators differ."""
     count = len(positions)
     directions = rng.normal(size=(count, rays, 3))
@@ -272,7 +273,7 @@ def seed_estimator(caster, positions, normals, inward, rays, rng):
     visible = np.zeros((count, rays))
     for v in range(count):
         up = np.flatnonzero(cosines[v] > 0)  # rays below the horizon weigh zero: not cast
-        visible[v, up] = ~caster.occluded(origins[v:v + 1], directions[v:v + 1, up])[0]
+        visible[v, up] = ~caster.engine.occluded(origins[v:v + 1], directions[v:v + 1, up])[0]
     basis = sh.evaluate(ORDER, directions)
     return (4.0 / rays) * np.einsum("vr,vrk->vk", visible * cosines, basis)
 
@@ -347,7 +348,7 @@ def demo_bake(receivers, sample_sets, all_picks, reference, config):
         rows = picks.rows_in(all_picks)
         # As the bake defines it: ÷ the norm of the unshadowed transfer (the same for every unit normal).
         coefficient_error = np.linalg.norm(picks.of(transfer) - reference["transfer"][rows], axis=1)
-        error = coefficient_error / bake.unshadowed_norm(ORDER)
+        error = coefficient_error / lobes.unshadowed_norm(ORDER)
         out["samples"][label] = {
             "vertices": len(rows), "actual_rms_rel_error": rms(error),
             "estimated_rms_rel_error": rms(picks.of(estimated)),
@@ -507,7 +508,7 @@ def main(argv=None):
           f"{os.cpu_count()} cores, load average {os.getloadavg()[0]:.2f}")
 
     receivers, occluders = scene_geometry()
-    caster = bake.RayCaster(occluders)
+    caster = ray_caster.RayCaster(occluders)
     exact = sum(int(provably_unoccluded(caster, r).sum()) for r in receivers)
     print(f"demo scene: {len(receivers)} receivers, {sum(len(r.positions) for r in receivers)} vertices, "
           f"{len(occluders.triangles)} occluder triangles, {exact} vertices provably unoccluded")

@@ -34,7 +34,8 @@ from prt_addon.blender import storage, validation  # noqa: E402
 from prt_addon.blender.scene_bake import SceneBake  # noqa: E402
 from prt_addon.commands.common import (  # noqa: E402
     add_object_options, log, object_names, open_file, schema_registered, warn)
-from prt_addon.core.bake import BakeSettings, unshadowed_norm  # noqa: E402
+from prt_addon.core.bake import BakeSettings  # noqa: E402
+from prt_addon.core.lobes import unshadowed_norm  # noqa: E402
 from prt_addon.core.errors import InputError  # noqa: E402
 from prt_addon.core.progress import Job, Progress  # noqa: E402
 from prt_addon.core.settings import MOST_SAMPLES  # noqa: E402

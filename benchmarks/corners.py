@@ -34,7 +34,7 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 DEFAULT_ASSET = os.path.join(os.path.dirname(ROOT), "shared", "assets", "cow.obj")
 BEFORE_SHADING_AWARE = "d8f5541196f64e0fa0ccfe191fdcc045fb01dbd8"  # the commit before the corner split
 FLAT_GOAL, SMOOTH_GOAL = 1.5, 0.05
-CONVERGENCE_RATE = 0.79  # core.bake.CONVERGENCE_RATE; copied so that --against can run revisions without it
+CONVERGENCE_RATE = 0.79  # core.scheduling.CONVERGENCE_RATE; copied so that --against can run revisions without it
 REPLICATES = 4  # core.bake.BakeSettings.replicates: samples are split evenly over them
 
 # Run in a fresh process: bakes each side in turn, `bakes` times, the order of the sides turning each time, and prints

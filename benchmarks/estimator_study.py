@@ -22,7 +22,7 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import bake as bench  # noqa: E402  (benchmarks/bake.py: the scene, picks, reference and seed estimator)
 import numpy as np  # noqa: E402
 
-from prt_addon.core import bake  # noqa: E402
+from prt_addon.core import bake, lobes, ray_caster  # noqa: E402
 from prt_addon.commands.common import schema_registered  # noqa: E402
 
 SAMPLES = 256
@@ -82,7 +82,7 @@ def uneven_rays(per_vertex, estimated, seed_error):
 
 def target_honesty(receivers, occluders, picks, reference, max_samples):
     print("\n4. Target error 0.01 (relative): does the estimate still tell the truth when it decides where to stop?")
-    scale = bake.unshadowed_norm(bench.ORDER)
+    scale = lobes.unshadowed_norm(bench.ORDER)
     for replicates in (2, 4):
         settings = bake.BakeSettings(samples=SAMPLES, replicates=replicates, target_error=0.01,
                                      max_samples=max_samples)
@@ -99,7 +99,7 @@ def main(argv=None):
     config = bench.QUICK if args.quick else bench.FULL
     ray_counts = QUICK_RAY_COUNTS if args.quick else RAY_COUNTS
     receivers, occluders = bench.scene_geometry()
-    caster = bake.RayCaster(occluders)
+    caster = ray_caster.RayCaster(occluders)
     picks = bench.pick_vertices(caster, receivers, config.error_vertices, None, True,
                                 np.random.default_rng(bench.PICK_SEED))
     reference = bench.reference_transfer(receivers, occluders, picks, config)["transfer"]

@@ -34,7 +34,7 @@ from prt_addon.blender import sample_scenes, texel_maps  # noqa: E402
 from prt_addon.blender.image_validation import validate_image  # noqa: E402
 from prt_addon.blender.scene_bake import SceneBake  # noqa: E402
 from prt_addon.blender.texel_bake import TexelSurface  # noqa: E402
-from prt_addon.core import bake, job  # noqa: E402
+from prt_addon.core import bake, job, lobes  # noqa: E402
 
 ROOM_GOAL_S = 60.0
 IMAGE_GOAL = 0.02
@@ -107,7 +107,7 @@ def actual_error(scene_bake, settings, workers, sizes: Sizes):
                                            seed=settings.seed + 1)
     results = job.TransferJob(receivers, scene_bake.job.occluders, reference_settings, workers,
                               scene_bake.job.worker_command).run()
-    scale = bake.unshadowed_norm(settings.order)
+    scale = lobes.unshadowed_norm(settings.order)
     difference = np.concatenate([np.linalg.norm(s - r.transfer, axis=1) for s, r in zip(stored, results)]) / scale
     noise = np.concatenate([r.rel_error for r in results])
     measured = math.sqrt(np.mean(difference ** 2))

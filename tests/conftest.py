@@ -179,14 +179,13 @@ def wait_until(condition, what: str, process=None, timeout_s: float = 120.0):
 def chunks_baked_here(monkeypatch):
     """The first rows of the chunks the test's own process bakes, in order; worker processes run the same code
     elsewhere, unrecorded."""
-    import bpy  # noqa: F401  (before mathutils, which the core imports)
-    from prt_addon.core import bake
-    here, real, baked = os.getpid(), bake.bake_chunk, []
+    from prt_addon.core import estimator
+    here, real, baked = os.getpid(), estimator.bake_chunk, []
 
     def recorded(caster, receiver, rows, settings):
         if os.getpid() == here:
             baked.append(int(rows[0]))
         return real(caster, receiver, rows, settings)
 
-    monkeypatch.setattr(bake, "bake_chunk", recorded)
+    monkeypatch.setattr(estimator, "bake_chunk", recorded)
     return baked

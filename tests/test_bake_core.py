@@ -2,16 +2,22 @@
 
 import itertools
 import os
+from pathlib import Path
+import subprocess
 import sys
 
-import bpy  # noqa: F401  (mathutils comes with bpy)
 import numpy as np
 import pytest
 from numpy.polynomial import legendre
 
 from quadrature import polygon_transfer
 
-from prt_addon.core import bake, job, polygons, workers
+from prt_addon.core import bake, estimator, job, lobes, polygons, ray_caster, scheduling, sh, workers
+
+ENGINE = "reference"  # the estimator's tests need no Blender
+# Segments of the disc in tests that compare bakes with each other, not with the disc's closed form: the reference
+# engine's cost grows with the triangles.
+COARSE_DISC = 64
 
 
 def disc(radius, height, segments=720):
@@ -20,7 +26,7 @@ def disc(radius, height, segments=720):
     ring = np.stack([radius * np.cos(angles), radius * np.sin(angles), np.full(segments, height)], 1)
     vertices = np.vstack([[0.0, 0.0, height], ring])
     triangles = np.array([[0, 1 + i, 1 + (i + 1) % segments] for i in range(segments)])
-    return bake.Occluders(vertices, triangles, vertices.copy())
+    return bake.Occluders(vertices, triangles, vertices.copy(), engine=ENGINE)
 
 
 def capped_transfer_zonal(order, cap_half_angle):
@@ -47,7 +53,7 @@ def run(receivers, occluders, **settings):
     return the_job.run(), the_job
 
 
-ZONAL = [bake.sh.index(l, 0) for l in range(4)]
+ZONAL = [sh.index(l, 0) for l in range(4)]
 
 
 def test_unshadowed_is_the_closed_form_without_rays():
@@ -89,10 +95,10 @@ def test_a_flat_occluder_is_exact_without_noise():
     normals = np.array([[0.0, 0.0, 1.0], [0.6, 0.0, 0.8], [0.0, -0.8, 0.6], [0.0, 0.0, 1.0]])
     positions = np.array([[0.0, 0.0, 0.0], [0.5, 0.3, 0.2], [-1.5, 0.4, 0.5], [1.2, 1.1, -0.3]])
     receiver = bake.Receiver("r", positions, normals, 5)
-    occluders = bake.Occluders(vertices, triangles, vertices, [polygon])
+    occluders = bake.Occluders(vertices, triangles, vertices, [polygon], engine=ENGINE)
     (result,), _ = run([receiver], occluders, order=6, samples=64)
-    origins = positions + bake.OFFSET_FRACTION * occluders.diagonal * normals  # where the rays start
-    unshadowed = bake.unshadowed_transfer(6, normals)
+    origins = positions + ray_caster.OFFSET_FRACTION * occluders.diagonal * normals  # where the rays start
+    unshadowed = lobes.unshadowed_transfer(6, normals)
     truth = [u - polygon_transfer(6, o, n, polygon) for u, o, n in zip(unshadowed, origins, normals)]
     assert result.rays.min() == 64
     np.testing.assert_allclose(result.transfer, truth, atol=1e-6)
@@ -128,12 +134,26 @@ def test_estimated_error_is_honest():
     assert 0.7 <= np.sqrt(np.mean(z ** 2)) <= 1.4
 
 
+def test_the_core_bakes_where_neither_bpy_nor_mathutils_can_be_imported():
+    """With the reference engine the estimator is numpy alone: a process in which bpy and mathutils cannot be
+    imported bakes the disc's shadow, bit for bit as this process does."""
+    script = ("import sys\n"
+              "sys.modules['bpy'] = sys.modules['mathutils'] = None  # an import of either raises ImportError\n"
+              f"sys.path[:0] = [{str(Path(__file__).parents[1])!r}, {str(Path(__file__).parent)!r}]\n"
+              "from test_bake_core import disc, receiver_copies, run\n"
+              "(result,), _ = run([receiver_copies(8)], disc(1.0, 1.5, COARSE_DISC), order=3, samples=32)\n"
+              "sys.stdout.buffer.write(result.transfer.tobytes())\n").replace("COARSE_DISC", str(COARSE_DISC))
+    there = subprocess.run([sys.executable, "-c", script], capture_output=True, check=True, timeout=300).stdout
+    (here,), _ = run([receiver_copies(8)], disc(1.0, 1.5, COARSE_DISC), order=3, samples=32)
+    assert there == here.transfer.tobytes() and here.rays.sum() > 0
+
+
 def test_provably_unoccluded_vertices_cast_no_rays_and_are_exact():
     above = receiver_copies(10, position=(0.0, 0.0, 2.0), name="above")
     below = receiver_copies(10, position=(0.0, 0.0, 0.0), name="below")
     (top, bottom), the_job = run([above, below], disc(1.0, 1.5), order=4, samples=64)
     assert top.skipped.all() and top.rays.sum() == 0 and not bottom.skipped.any()
-    np.testing.assert_array_equal(top.transfer, bake.unshadowed_transfer(4, above.normals).astype(np.float32))
+    np.testing.assert_array_equal(top.transfer, lobes.unshadowed_transfer(4, above.normals).astype(np.float32))
     summary = the_job.summary([top, bottom])
     assert summary.skipped_vertices == 10 and summary.rays == 10 * 64
 
@@ -144,7 +164,7 @@ def test_scaled_and_moved_scenes_bake_the_same(scale, shift):
     probe = bake.Receiver("p", np.array([[0.3, -0.2, 0.0], [0.9, 0.9, 0.0]]), np.array([[0, 0, 1.0]] * 2), 3)
     (reference,), _ = run([probe], occluders, order=4, samples=256)
     moved_occluders = bake.Occluders(occluders.vertices * scale + shift, occluders.triangles,
-                                     occluders.hull * scale + shift)
+                                     occluders.hull * scale + shift, engine=ENGINE)
     moved = bake.Receiver("p", probe.positions * scale + shift, probe.normals, 3)
     (result,), _ = run([moved], moved_occluders, order=4, samples=256)
     np.testing.assert_allclose(result.transfer, reference.transfer, atol=1e-12)
@@ -164,8 +184,8 @@ def bake_alone_and_with_a_worker(launch, owners=None):
     positions = np.column_stack([rng.uniform(-1.5, 1.5, (600, 2)), np.zeros(600)])
     receiver = bake.Receiver("w", positions, np.tile([0.0, 0.0, 1.0], (600, 1)), 21)
     settings = bake.BakeSettings(order=4, samples=64, target_error=0.05, max_samples=1024)
-    one = job.TransferJob([receiver], disc(1.0, 1.0), settings, workers=1).run()[0]
-    two_workers = job.TransferJob([receiver], disc(1.0, 1.0), settings, workers=2, worker_command=launch,
+    one = job.TransferJob([receiver], disc(1.0, 1.0, COARSE_DISC), settings, workers=1).run()[0]
+    two_workers = job.TransferJob([receiver], disc(1.0, 1.0, COARSE_DISC), settings, workers=2, worker_command=launch,
                                   owners=owners)
     two_workers.min_rays_for_workers = 0  # a job this small would otherwise stay in one process
     two_workers.worker_start_s = 0.0      # and a spawned worker's share is not cut for its start-up
@@ -245,18 +265,18 @@ def test_batching_a_round_never_changes_a_result(monkeypatch):
     positions = np.column_stack([rng.uniform(-1.5, 1.5, (200, 2)), np.zeros(200)])
     receiver = bake.Receiver("b", positions, np.tile([0.0, 0.0, 1.0], (200, 1)), 22)
     settings = dict(order=4, samples=64, target_error=0.03, max_samples=1024)
-    (whole,), _ = run([receiver], disc(1.0, 1.0), **settings)
-    monkeypatch.setattr(bake, "WEIGHT_BYTES_PER_BATCH", 2400)  # a few vertices per batch, uneven last batches
+    (whole,), _ = run([receiver], disc(1.0, 1.0, COARSE_DISC), **settings)
+    monkeypatch.setattr(estimator, "WEIGHT_BYTES_PER_BATCH", 2400)  # a few vertices per batch, uneven last batches
     yields = []
-    work = bake.bake_chunk(bake.RayCaster(disc(1.0, 1.0)), receiver, np.arange(bake.CHUNK_VERTICES),
-                           bake.BakeSettings(**settings))
+    work = estimator.bake_chunk(ray_caster.RayCaster(disc(1.0, 1.0, COARSE_DISC)), receiver,
+                                np.arange(scheduling.CHUNK_VERTICES), bake.BakeSettings(**settings))
     try:
         while True:
             yields.append(next(work))
     except StopIteration:
         pass
     assert len(yields) > 20 and np.median(yields) <= 300 and max(yields) <= 1024  # a vertex's round is never split
-    (batched,), _ = run([receiver], disc(1.0, 1.0), **settings)
+    (batched,), _ = run([receiver], disc(1.0, 1.0, COARSE_DISC), **settings)
     np.testing.assert_array_equal(whole.transfer, batched.transfer)
     np.testing.assert_array_equal(whole.std_error, batched.std_error)
     np.testing.assert_array_equal(whole.rays, batched.rays)

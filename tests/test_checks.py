@@ -191,8 +191,8 @@ def test_the_bake_operator_stops_on_an_error_and_keeps_the_earlier_bake(empty_sc
     bake_in_the_panel()
     before, meta_before = transfer_of(cube)
     installed = importlib.import_module(f"{addon}.prt_addon.core.checks")  # the one the operator runs
-    baked, real = [], installed.bake.bake_chunk
-    monkeypatch.setattr(installed.bake, "bake_chunk", lambda caster, receiver, *rest: (
+    baked, real = [], installed.estimator.bake_chunk
+    monkeypatch.setattr(installed.estimator, "bake_chunk", lambda caster, receiver, *rest: (
         baked.append(receiver.name), real(caster, receiver, *rest))[1])
     monkeypatch.setattr(installed, "available_memory", lambda: 1 << 20)  # no memory to spare
     with pytest.raises(RuntimeError, match="memory: the bake needs about .* more than the 1.0 MB available"):

@@ -6,7 +6,7 @@ import numpy as np
 
 from prt_addon.blender import geometry, storage
 from prt_addon.blender.scene_bake import SceneBake
-from prt_addon.core import bake, interpolation, job
+from prt_addon.core import bake, interpolation, job, lobes
 from prt_addon.core.bake import BakeSettings
 
 
@@ -47,8 +47,8 @@ def test_an_unshadowed_coarse_sphere_reports_the_loss_quadrature_measures(empty_
     summary = scene_bake.run()
     surface = geometry.surface_from_object(sphere, bpy.context.evaluated_depsgraph_get(), [])
     transfer, meta = storage.read_transfer(sphere.data)
-    truth = measured_loss(surface, lambda points, normals: bake.unshadowed_transfer(4, normals), transfer,
-                          bake.unshadowed_norm(4))
+    truth = measured_loss(surface, lambda points, normals: lobes.unshadowed_transfer(4, normals), transfer,
+                          lobes.unshadowed_norm(4))
     assert truth > 0.02  # teeth: the coarse sphere loses far more than the tolerance below
     assert abs(summary.est_interp_rms_rel_error - truth) <= 0.25 * truth, (summary.est_interp_rms_rel_error, truth)
     assert summary.interp_points == interpolation.FEWEST_PROBES and summary.interp_rays == 0
@@ -74,6 +74,6 @@ def test_a_one_quad_floor_under_a_box_reports_the_shadow_its_vertices_miss(empty
         receiver = bake.Receiver("quadrature", points, normals, 5)
         return job.TransferJob([receiver], occluders, BakeSettings(order=3, samples=256)).run()[0].transfer
 
-    truth = measured_loss(surface, baked_at, transfer, bake.unshadowed_norm(3))
+    truth = measured_loss(surface, baked_at, transfer, lobes.unshadowed_norm(3))
     assert summary.est_rms_rel_error < 0.02 and truth > 0.1  # the vertices are right; between them, the shadow
     assert 1 / 1.5 <= summary.est_interp_rms_rel_error / truth <= 1.5, (summary.est_interp_rms_rel_error, truth)

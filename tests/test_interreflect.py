@@ -2,11 +2,12 @@
 
 import sys
 
-import bpy  # noqa: F401  (mathutils comes with bpy)
 import numpy as np
 import pytest
 
-from prt_addon.core import bake, interreflect, job, workers
+from prt_addon.core import bake, interreflect, job, lobes, scheduling, workers
+
+ENGINE = "reference"  # the estimator's tests need no Blender
 
 
 def closed_box(cuts=4, size=2.0):
@@ -49,7 +50,7 @@ def closed_box(cuts=4, size=2.0):
 
 def interreflected_job(vertices, triangles, normals, albedo, **settings):
     receiver = bake.Receiver("box", vertices, normals, 9)
-    occluders = bake.Occluders(vertices, triangles, vertices.copy(), solved_vertices=len(vertices))
+    occluders = bake.Occluders(vertices, triangles, vertices.copy(), solved_vertices=len(vertices), engine=ENGINE)
     the_job = job.TransferJob([receiver], occluders, bake.BakeSettings(mode="interreflected", **settings),
                               albedo=[albedo])
     return the_job, the_job.run()
@@ -82,7 +83,7 @@ def test_auto_bounces_match_many_fixed_bounces_on_a_non_constant_transfer():
                                     order=3, samples=64)
     operator = interreflect.bounce_operator(interreflect.HitRecords.concatenate(the_job.records), triangles,
                                             len(vertices))
-    direct = bake.unshadowed_transfer(3, normals)  # any non-constant start
+    direct = lobes.unshadowed_transfer(3, normals)  # any non-constant start
     albedo = np.full((len(vertices), 1), 0.9)
     auto, report = interreflect.interreflect(direct, albedo, operator, tolerance=1e-6)
     many, _ = interreflect.interreflect(direct, albedo, operator, bounces=600)
@@ -133,9 +134,9 @@ def test_white_floor_turns_red_beside_a_red_wall():
     normals = np.vstack([np.tile([0.0, 0.0, 1.0], (121, 1)), np.tile([-1.0, 0.0, 0.0], (121, 1))])
     albedo = np.vstack([np.tile([0.8, 0.8, 0.8], (121, 1)), np.tile([0.8, 0.05, 0.05], (121, 1))])
     receiver = bake.Receiver("room", vertices, normals, 4)
-    the_job = job.TransferJob([receiver], bake.Occluders(vertices, triangles, vertices.copy(), solved_vertices=len(vertices)),
-                              bake.BakeSettings(mode="interreflected", order=3, samples=256, bounces=3),
-                              albedo=[albedo])
+    occluders = bake.Occluders(vertices, triangles, vertices.copy(), solved_vertices=len(vertices), engine=ENGINE)
+    the_job = job.TransferJob([receiver], occluders,
+                              bake.BakeSettings(mode="interreflected", order=3, samples=256, bounces=3), albedo=[albedo])
     (result,) = the_job.run()
     assert result.transfer.shape == (242, 3, 9)
     near, far = 5 * 11 + 9, 5 * 11 + 0  # floor vertices at x = 0.8 and x = −1
@@ -150,7 +151,7 @@ def records_in_chunk_order(the_job):
     """The job's hit records as (vertex, triangle, barycentric, weight), chunk by chunk, whichever process baked
     each chunk and whenever its records arrived (a stable sort keeps each chunk's own order)."""
     records = interreflect.HitRecords.concatenate(the_job.records)
-    order = np.argsort(records.vertex // bake.CHUNK_VERTICES, kind="stable")
+    order = np.argsort(records.vertex // scheduling.CHUNK_VERTICES, kind="stable")
     return [getattr(records, name)[order] for name in interreflect.HitRecords.FIELDS]
 
 
@@ -161,8 +162,8 @@ def test_workers_bring_back_the_hit_records_bit_identically(launch, chunks_baked
     settings = bake.BakeSettings(mode="interreflected", order=3, samples=64, bounces=2)
     albedo = np.full((len(vertices), 1), 0.7)
     one_process, (one,) = interreflected_job(vertices, triangles, normals, albedo, order=3, samples=64, bounces=2)
-    two_workers = job.TransferJob([bake.Receiver("box", vertices, normals, 9)],
-                                  bake.Occluders(vertices, triangles, vertices.copy(), solved_vertices=len(vertices)), settings, workers=2,
+    occluders = bake.Occluders(vertices, triangles, vertices.copy(), solved_vertices=len(vertices), engine=ENGINE)
+    two_workers = job.TransferJob([bake.Receiver("box", vertices, normals, 9)], occluders, settings, workers=2,
                                   worker_command=launch, albedo=[albedo], owners=[1, 0, 1, 0])
     two_workers.min_rays_for_workers = 0  # a job this small would otherwise stay in one process
     chunks_baked_here.clear()
@@ -210,7 +211,8 @@ def test_the_estimate_covers_the_bounces_noise():
     shadowed bake of the same walls estimates exactly zero away from the walls' seams (at a seam the next wall's
     plane grazes the ray origins, where its rays and its closed form may disagree)."""
     vertices, triangles, normals, polygons = open_box()
-    occluders = bake.Occluders(vertices, triangles, vertices.copy(), polygons, solved_vertices=len(vertices))
+    occluders = bake.Occluders(vertices, triangles, vertices.copy(), polygons, solved_vertices=len(vertices),
+                               engine=ENGINE)
     albedo = np.full((len(vertices), 1), 0.7)
     results = []
     for seed in (0, 1):

@@ -1,6 +1,5 @@
 """Property-based checks (hypothesis) of what must hold for every input, not just the examples we thought of."""
 
-import bpy  # noqa: F401  (mathutils comes with bpy)
 import numpy as np
 from hypothesis import given, settings, strategies as st
 
@@ -40,7 +39,7 @@ def test_a_scaled_and_moved_scene_bakes_the_same(log_scale, offset):
     settings_ = bake.BakeSettings(order=3, samples=64)
     (reference,) = job.TransferJob([probe], occluders, settings_).run()
     moved_occluders = bake.Occluders(occluders.vertices * scale + offset, occluders.triangles,
-                                     occluders.hull * scale + offset)
+                                     occluders.hull * scale + offset, engine=occluders.engine)
     moved_probe = bake.Receiver("p", probe.positions * scale + offset, probe.normals, 3)
     (moved,) = job.TransferJob([moved_probe], moved_occluders, settings_).run()
     np.testing.assert_allclose(moved.transfer, reference.transfer, atol=1e-6)

@@ -1,14 +1,16 @@
-"""The corner points of one vertex share their rays (core.corners.ray_groups, core.bake._blocked_round): each
+"""The corner points of one vertex share their rays (core.corners.ray_groups, core.estimator._blocked_round): each
 point's estimate stays unbiased and its error estimate honest, against polygon quadrature that does not use the
 code under test."""
 
-import bpy  # noqa: F401  (mathutils comes with bpy)
 import numpy as np
 import pytest
 
 from quadrature import polygon_transfer, reference_sh
 
-from prt_addon.core import bake, corners, interreflect, job
+from prt_addon.core import bake, corners, interreflect, job, lobes, rings, scheduling
+from prt_addon.core.engines.reference import ReferenceEngine
+
+ENGINE = "reference"  # the estimator's tests need no Blender
 
 # Three corner normals of one vertex, which share one ray group in the tests below.
 NORMALS = np.array([[0.0, 0.0, 1.0], [np.sin(0.6), 0.0, np.cos(0.6)], [0.0, -np.sin(0.9), np.cos(0.9)]])
@@ -17,7 +19,7 @@ ROOF = np.array([[-0.4, -1.0, 0.8], [1.2, -1.0, 0.8], [1.2, 0.6, 1.1], [-0.4, 0.
 
 def roof_occluders(as_polygon=False):
     triangles = np.array([[0, 1, 2], [0, 2, 3]])
-    return bake.Occluders(ROOF, triangles, ROOF.copy(), [ROOF] if as_polygon else [])
+    return bake.Occluders(ROOF, triangles, ROOF.copy(), [ROOF] if as_polygon else [], engine=ENGINE)
 
 
 def shared_vertices(count):
@@ -28,7 +30,7 @@ def shared_vertices(count):
 
 def truth(order):
     """Quadrature: the unshadowed transfer minus what the roof blocks, per normal."""
-    return np.array([bake.unshadowed_transfer(order, n[None])[0] - polygon_transfer(order, np.zeros(3), n, ROOF)
+    return np.array([lobes.unshadowed_transfer(order, n[None])[0] - polygon_transfer(order, np.zeros(3), n, ROOF)
                      for n in NORMALS])
 
 
@@ -151,15 +153,15 @@ def test_rays_below_every_points_horizon_are_not_cast_and_change_nothing(monkeyp
     count = 50
     skipping = bake_points(shared_vertices(count), roof_occluders(), order=3, samples=64)
     cast, left = [], []
-    original = bake.RayCaster.occluded
+    original = ReferenceEngine.occluded
 
-    def casting_every_ray(self, origins, directions, hits=False, live=None):
+    def casting_every_ray(self, origins, directions, live=None):
         if live is not None:
             cast.append(directions[live])
             left.append(directions[~live])
-        return original(self, origins, directions, hits)
+        return original(self, origins, directions)
 
-    monkeypatch.setattr(bake.RayCaster, "occluded", casting_every_ray)
+    monkeypatch.setattr(ReferenceEngine, "occluded", casting_every_ray)
     every = bake_points(shared_vertices(count), roof_occluders(), order=3, samples=64)
     np.testing.assert_array_equal(skipping.transfer, every.transfer)
     np.testing.assert_array_equal(skipping.std_error, every.std_error)
@@ -184,7 +186,8 @@ def test_a_shared_group_hands_each_point_its_hits_with_unbiased_weights():
     receiver = bake.Receiver("inside", positions, np.tile(NORMALS, (count, 1)), 3, None,
                              np.repeat(np.arange(count), 3))
     vertices = np.vstack([positions, corners_])  # the solved rows first, as interreflection needs
-    occluders = bake.Occluders(vertices, triangles + len(positions), corners_.copy(), solved_vertices=len(positions))
+    occluders = bake.Occluders(vertices, triangles + len(positions), corners_.copy(), solved_vertices=len(positions),
+                               engine=ENGINE)
     the_job = job.TransferJob([receiver], occluders, bake.BakeSettings(mode="interreflected", order=2, samples=64,
                                                                         bounces=0), albedo=[np.zeros((len(positions), 1))])
     the_job.run()
@@ -198,9 +201,9 @@ def test_a_chunk_whose_points_all_need_no_rays_bakes_exactly_without_any():
     """Split points that all see the whole sky (nothing above them) form no ray group at all."""
     receiver = shared_vertices(4)
     result = bake_points(receiver, bake.Occluders(ROOF - [0, 0, 3.0], np.array([[0, 1, 2], [0, 2, 3]]),
-                                                  ROOF - [0, 0, 3.0]), order=3, samples=64)
+                                                  ROOF - [0, 0, 3.0], engine=ENGINE), order=3, samples=64)
     assert result.rays.sum() == 0 and result.skipped.all()
-    np.testing.assert_allclose(result.transfer, np.tile(bake.unshadowed_transfer(3, NORMALS), (4, 1)), atol=1e-7)
+    np.testing.assert_allclose(result.transfer, np.tile(lobes.unshadowed_transfer(3, NORMALS), (4, 1)), atol=1e-7)
 
 
 
@@ -211,13 +214,13 @@ def test_chunks_take_whole_groups_and_twice_as_many_shared_ones():
     labels = np.r_[np.arange(single), single + np.repeat(np.arange(shared), 3)]
     receiver = bake.Receiver("mixed", np.zeros((len(labels), 3)), np.tile([0.0, 0.0, 1.0], (len(labels), 1)), 5,
                              None, labels)
-    chunks = bake.chunk_rows([receiver])
+    chunks = scheduling.chunk_rows([receiver])
     groups_per_chunk = [len(np.unique(labels[rows])) for _, rows in chunks]
-    per_chunk = bake.CHUNK_VERTICES
+    per_chunk = scheduling.CHUNK_VERTICES
     # 300 single rows: chunks of 128, 128, then 44 rows sharing a chunk with shared groups worth 84 more singles
     left = per_chunk - single % per_chunk
-    first_shared = bake.SHARED_CHUNK_FACTOR * left
-    whole = per_chunk * bake.SHARED_CHUNK_FACTOR
+    first_shared = scheduling.SHARED_CHUNK_FACTOR * left
+    whole = per_chunk * scheduling.SHARED_CHUNK_FACTOR
     expected = [per_chunk, per_chunk, single % per_chunk + first_shared]
     expected += [whole] * ((shared - first_shared) // whole) + [(shared - first_shared) % whole]
     assert groups_per_chunk == expected
@@ -239,7 +242,7 @@ def v_groove(rise, vertices_along=41, wing=3.0, spacing=0.1):
     triangles = np.array([triangle for strip in strips for triangle in strip])
     left_wing = triangles.max(1) < 2 * vertices_along
     triangles[left_wing] = triangles[left_wing][:, ::-1]  # both wings face up
-    occluders = bake.Occluders(vertices, triangles, vertices.copy())
+    occluders = bake.Occluders(vertices, triangles, vertices.copy(), engine=ENGINE)
     return occluders, crease, np.array([[np.sin(rise), 0.0, np.cos(rise)], [-np.sin(rise), 0.0, np.cos(rise)]])
 
 
@@ -271,9 +274,9 @@ def test_a_v_grooves_crease_points_see_the_other_wing_as_quadrature_does(rise):
                              np.repeat(np.arange(count) * 2, 2), into_wings)
     result = bake_points(receiver, occluders, order=order, samples=64)
     assert 0 < result.rays.sum() <= count * 64  # a group casts at most what one point would
-    expected = np.tile([bake.unshadowed_transfer(order, normal[None])[0] - wedge_transfer(order, normal, rise, side)
+    expected = np.tile([lobes.unshadowed_transfer(order, normal[None])[0] - wedge_transfer(order, normal, rise, side)
                         for normal, side in zip(normals, (1.0, -1.0))], (count, 1))
-    assert np.abs(expected - bake.unshadowed_transfer(order, receiver.normals)).max() > 0.05  # teeth: a real shadow
+    assert np.abs(expected - lobes.unshadowed_transfer(order, receiver.normals)).max() > 0.05  # teeth: a real shadow
     z = np.linalg.norm(result.transfer - expected, axis=1) / np.maximum(result.std_error, 1e-12)
     assert 0.6 <= np.sqrt(np.mean(z ** 2)) <= 1.5, z
     spread = result.std_error.mean() / np.sqrt(len(z))
@@ -296,7 +299,7 @@ def crossing(origins, directions, corners_):
 
 
 def test_ring_planes_mark_only_rays_that_cross_their_triangle():
-    """RayCaster.ring_planes with _surely_hit, against a plain line-triangle intersection: from origins just off a
+    """rings.ring_planes with surely_hit, against a plain line-triangle intersection: from origins just off a
     vertex where six folded triangles meet (some facing the origin, some turned away from it), every ray marked
     crosses its triangle ahead of the origin, and every ray that crosses one clear of its edges' planes and its own
     plane by twice the margin is marked."""
@@ -305,15 +308,15 @@ def test_ring_planes_mark_only_rays_that_cross_their_triangle():
     rim = np.column_stack([np.cos(angles), np.sin(angles), rng.uniform(-0.6, 0.6, 6)])
     vertices = np.vstack([np.zeros(3), rim])
     triangles = np.array([[0, 1 + i, 1 + (i + 1) % 6] for i in range(6)])
-    caster = bake.Occluders(vertices, triangles, vertices.copy()).ray_caster()
+    caster = bake.Occluders(vertices, triangles, vertices.copy(), engine=ENGINE).ray_caster()
     groups, rays = 40, 3000
     origins = rng.normal(size=(groups, 3)) * [0.02, 0.02, 0.01] + [0.0, 0.0, 0.02]
     origins -= caster.center  # the caster's frame
     directions = rng.normal(size=(groups, rays, 3))
     directions /= np.linalg.norm(directions, axis=2, keepdims=True)
     ring = np.tile(np.arange(6), (groups, 1))
-    planes = caster.ring_planes(origins, ring)
-    marked = bake._surely_hit(planes, np.ascontiguousarray(directions.transpose(0, 2, 1)).astype(np.float32))
+    planes = rings.ring_planes(caster, origins, ring)
+    marked = rings.surely_hit(planes, np.ascontiguousarray(directions.transpose(0, 2, 1)).astype(np.float32))
     corners_ = caster.vertices[caster.triangles[ring]]
     crosses = crossing(origins, directions, corners_)
     # clear: the ray's sines to the planes through the origin and each edge, and to the triangle's plane
@@ -324,7 +327,7 @@ def test_ring_planes_mark_only_rays_that_cross_their_triangle():
     face_normals /= np.linalg.norm(face_normals, axis=2, keepdims=True)
     sines = np.abs(np.concatenate([np.einsum("gnd,gfed->gnfe", directions, edge_normals),
                                    np.einsum("gnd,gfd->gnf", directions, face_normals)[..., None]], axis=3))
-    clear = (sines > 2 * bake.RING_MARGIN).all(axis=3)
+    clear = (sines > 2 * rings.RING_MARGIN).all(axis=3)
     assert (marked <= crosses.any(axis=2)).all()
     assert ((crosses & clear).any(axis=2) <= marked).all()
     assert 0.02 < marked.mean() < 0.98  # teeth: rays both ways
@@ -344,9 +347,9 @@ def test_rays_known_to_hit_the_vertexs_own_faces_are_not_cast_and_change_nothing
                              np.repeat(np.arange(count) * 2, 2))
 
     known = bake_points(groove_points(), occluders, order=3, samples=64)
-    monkeypatch.setattr(bake, "_group_ring_planes", lambda ring, heads: None)
-    cast = bake_points(groove_points(), bake.Occluders(occluders.vertices, occluders.triangles, occluders.hull),
-                       order=3, samples=64)
+    monkeypatch.setattr(rings, "group_ring_planes", lambda shared, heads: None)
+    cast = bake_points(groove_points(), bake.Occluders(occluders.vertices, occluders.triangles, occluders.hull,
+                                                      engine=ENGINE), order=3, samples=64)
     np.testing.assert_array_equal(known.transfer, cast.transfer)
     np.testing.assert_array_equal(known.std_error, cast.std_error)
     assert known.rays.sum() < 0.9 * cast.rays.sum()  # teeth: the other wing takes a good share of the rays

@@ -9,7 +9,7 @@ import pytest
 
 from prt_addon.blender import storage
 from prt_addon.blender.scene_bake import SceneBake
-from prt_addon.core import bake, lobes, sh, workers
+from prt_addon.core import estimator, lobes, sh, workers
 from prt_addon.core.bake import BakeSettings
 from prt_addon.core.errors import StaleBake
 from quadrature import sphere_quadrature
@@ -25,7 +25,7 @@ def bake_objects(names, **settings):
 
 
 def std_error_of(ob):
-    """The bake's estimated relative error per vertex (× bake.unshadowed_norm gives the absolute one)."""
+    """The bake's estimated relative error per vertex (× lobes.unshadowed_norm gives the absolute one)."""
     values = np.empty(len(ob.data.vertices), dtype=np.float32)
     ob.data.attributes["_prt_error"].data.foreach_get("value", values)
     return values
@@ -75,7 +75,7 @@ def test_vertex_on_a_smooth_concave_crease_sees_the_quarter_space(empty_scene):
     expected = quarter_space_transfer(normal)
     error = np.abs(transfer[crease_vertex] - expected)
     assert np.isfinite(transfer).all()
-    assert np.linalg.norm(error) < 5 * std_error_of(ob)[crease_vertex] * bake.unshadowed_norm(4) + 2e-3
+    assert np.linalg.norm(error) < 5 * std_error_of(ob)[crease_vertex] * lobes.unshadowed_norm(4) + 2e-3
 
 
 def test_flat_concave_crease_splits_into_the_floors_and_the_walls_point_each_seeing_the_quarter_space(empty_scene):
@@ -127,7 +127,7 @@ def test_two_sided_thin_sheet_and_flipped_normals_stay_finite_and_bounded(empty_
     # The underside's centre looks down at the 4 × 4 floor; the floor's centre looks up at the 1 × 1 sheet.
     centre = np.argmin(np.linalg.norm(np.array([v.co[:] for v in bottom.data.vertices])[:, :2], axis=1))
     below = np.argmin(np.linalg.norm(np.array([v.co[:] for v in floor.data.vertices]), axis=1))
-    scale = bake.unshadowed_norm(4)
+    scale = lobes.unshadowed_norm(4)
     assert np.linalg.norm(bottom_t[centre] - transfer_facing_a_square(-1, 1.0 - 1e-4, 2.0)) < \
         5 * std_error_of(bottom)[centre] * scale + 2e-3
     assert np.linalg.norm(floor_t[below] - transfer_facing_a_square(+1, 1.0 - 1e-4, 0.5)) < \
@@ -172,7 +172,7 @@ def spawned_worker_out_of_memory(scene_bake, monkeypatch):
 def forked_worker_out_of_memory_on_its_third_chunk(scene_bake, monkeypatch):
     assert scene_bake.job.worker_command == workers.FORK
     scene_bake.job.owners = [1] * len(scene_bake.job.chunks)  # the worker bakes every chunk: it reaches a third
-    baking_process, real_bake_chunk, chunks_baked = os.getpid(), bake.bake_chunk, []
+    baking_process, real_bake_chunk, chunks_baked = os.getpid(), estimator.bake_chunk, []
 
     def failing_in_the_worker(*args):
         if os.getpid() != baking_process:
@@ -181,7 +181,7 @@ def forked_worker_out_of_memory_on_its_third_chunk(scene_bake, monkeypatch):
                 raise MemoryError("worker ran out of memory on its third chunk")
         return real_bake_chunk(*args)
 
-    monkeypatch.setattr(bake, "bake_chunk", failing_in_the_worker)
+    monkeypatch.setattr(estimator, "bake_chunk", failing_in_the_worker)
     return "MemoryError: worker ran out of memory on its third chunk"
 
 

@@ -78,7 +78,7 @@ def test_a_one_quad_floor_per_texel_shows_the_spheres_shadow_as_the_closed_form_
     distance = np.sqrt(x * x + y * y + height * height)
     above_horizon = np.arcsin(radius / distance) + np.arccos(height / distance) < np.pi / 2 - 0.05
     expected = sphere_blocked_dc(x, y, radius, height)
-    error = texel_maps.read_error(floor.data).ravel() * bake.unshadowed_norm(ORDER)
+    error = texel_maps.read_error(floor.data).ravel() * lobes.unshadowed_norm(ORDER)
     difference = np.abs(planes[0] - expected)[above_horizon]
     assert above_horizon.sum() > 500
     assert np.sqrt(np.mean(difference ** 2)) < 0.005 * Y00

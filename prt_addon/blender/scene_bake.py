@@ -9,7 +9,7 @@ import sys
 import bpy
 import numpy as np
 
-from ..core import bake, corners, interpolation, job, settings as spec, subsurface, workers
+from ..core import bake, corners, interpolation, job, lobes, settings as spec, subsurface, workers
 from ..core.errors import InputError
 from ..core.progress import JobSequence, WrappingJob, old_objects_frozen
 from . import fingerprint, geometry, materials, storage, texel_bake
@@ -236,7 +236,7 @@ class SceneBake(WrappingJob):
 
     def _measure_interpolation(self, results):
         """The probes' interpolation error per object and overall, into the summary; the bake's time includes them."""
-        scale = bake.unshadowed_norm(self.settings.order)
+        scale = lobes.unshadowed_norm(self.settings.order)
         probe_results = dict(zip(self.probes, self.probe_job.results()))
         direct = self.job.direct or [result.transfer for result in results]
         everything = []

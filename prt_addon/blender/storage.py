@@ -21,18 +21,19 @@ Convention 2 files (POINT only, no domain) still read.
 from datetime import datetime, timezone
 import uuid
 
+import bpy
 import numpy as np
 
 from ..core import bake
 from ..core.statistics import rms
 from ..core.errors import InputError, StaleBake
-from . import texel_maps  # (texel_maps imports this module too: its names are read at call time)
 
 ATTRIBUTE_PREFIX = "_prt_"
 ERROR_ATTRIBUTE = "_prt_error"
 VALIDATION_ERROR_ATTRIBUTE = "_prt_validation_error"
 POINT_ATTRIBUTE = "_prt_point"
 METADATA_KEY = "prt"
+MAP_OF_KEY = "_prt_texel_map_of"  # on each image stored for a bake (texel maps, their shaded image): its mesh
 READABLE_CONVENTIONS = (2, bake.CONVENTION_VERSION)  # 2: POINT domain only, no `domain` key
 
 
@@ -109,11 +110,17 @@ def baked_objects(objects) -> list:
 
 
 def remove_transfer(mesh):
-    texel_maps.remove_maps(mesh)
+    remove_images(mesh)
     for name in [a.name for a in mesh.attributes if a.name.startswith(ATTRIBUTE_PREFIX)]:
         mesh.attributes.remove(mesh.attributes[name])
     if METADATA_KEY in mesh:
         del mesh[METADATA_KEY]
+
+
+def remove_images(mesh):
+    """Every image stored for the mesh's bake: a texel bake's maps and their shaded image."""
+    for image in [image for image in bpy.data.images if image.get(MAP_OF_KEY) == mesh.name]:
+        bpy.data.images.remove(image)
 
 
 def read_values(mesh, name) -> tuple[np.ndarray, str] | None:

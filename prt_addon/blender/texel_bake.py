@@ -12,7 +12,7 @@ from dataclasses import dataclass, field, fields, replace
 
 import numpy as np
 
-from ..core import bake, checks as core_checks, interpolation, job, texel_gather, texel_refine, texels
+from ..core import bake, checks as core_checks, interpolation, job, lobes, texel_gather, texel_refine, texels
 from ..core.errors import InputError
 from . import storage, texel_maps
 from .mesh_arrays import mesh_triangles
@@ -273,7 +273,7 @@ def _probe(candidates, occluders, settings: bake.BakeSettings):
                                        np.concatenate([inward, np.zeros_like(probes.positions)])))
         parts.append((len(used), replace(probes, corners=local.reshape(-1, 3))))
     settings = replace(settings, mode="shadowed") if settings.mode == "interreflected" else settings
-    scale = bake.unshadowed_norm(settings.order)
+    scale = lobes.unshadowed_norm(settings.order)
     probe_job = job.TransferJob(receivers, occluders, settings)
     for candidate, result, (corners, probes) in zip(candidates, probe_job.run(), parts):
         transfer = result.transfer.astype(np.float64)

@@ -19,12 +19,11 @@ import numpy as np
 
 from ..core import texels
 from ..core.errors import InputError, StaleBake
-from . import storage  # (storage imports this module too: its names are read at call time)
+from . import storage
 
 PRT_UV_MAP = "PRT Lightmap"
 STORAGE_KEY = "storage"  # in the metadata: "TEXEL"; vertex bakes have none (or "VERTEX")
 TEXEL_STORAGE = "TEXEL"
-MAP_OF_KEY = "_prt_texel_map_of"  # on each image: the mesh it belongs to
 SHADED_SUFFIX = "_shaded"
 MAX_UV_MAPS = 8  # Blender's limit per mesh
 
@@ -91,7 +90,7 @@ def write_maps(mesh, layout: texels.TexelLayout, transfer: np.ndarray, rel_error
                uv_map: str) -> dict:
     """Packs the coefficient and error images (replacing the mesh's earlier ones) and returns the metadata that
     names them."""
-    remove_maps(mesh)
+    storage.remove_images(mesh)
     names = image_names(mesh.name, order)
     rows = np.zeros((len(transfer), 4 * len(names) + 4), dtype=np.float32)  # the coefficient maps', then the error's
     rows[:, : order * order] = transfer
@@ -115,7 +114,7 @@ def _packed_image(name, mesh, pixels: np.ndarray):
     image.file_format = "OPEN_EXR"
     image.use_half_precision = False
     image.use_fake_user = True
-    image[MAP_OF_KEY] = mesh.name
+    image[storage.MAP_OF_KEY] = mesh.name
     image.pack()
     return image
 
@@ -156,12 +155,6 @@ def save_exr(mesh, stem: str) -> list[str]:
     return paths
 
 
-def remove_maps(mesh):
-    """Every image of the mesh's texel bake, and its shaded image."""
-    for image in [image for image in bpy.data.images if image.get(MAP_OF_KEY) == mesh.name]:
-        bpy.data.images.remove(image)
-
-
 # -- the shaded image -------------------------------------------------------------------------------------------
 def shaded_image(mesh):
     """The float image the relighting writes and the display material shows (made once per mesh and size; not
@@ -174,7 +167,7 @@ def shaded_image(mesh):
         image = None
     if image is None:
         image = bpy.data.images.new(name, meta["width"], meta["height"], alpha=True, float_buffer=True)
-        image[MAP_OF_KEY] = mesh.name
+        image[storage.MAP_OF_KEY] = mesh.name
     return image
 
 

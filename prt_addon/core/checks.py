@@ -10,7 +10,7 @@ import time
 
 import numpy as np
 
-from . import bake
+from . import bake, estimator, ray_caster
 from .errors import InputError
 from .progress import format_duration
 
@@ -180,7 +180,7 @@ def timed_sample(receivers, occluders, settings: bake.BakeSettings, rays: int = 
     if settings.mode == "unshadowed" or occluders is None or not len(occluders.triangles):
         return TimedSample(0, 0, 0, 0.0, 0.0)
     start = time.perf_counter()
-    caster = bake.RayCaster(occluders)
+    caster = ray_caster.RayCaster(occluders)
     tree_s = time.perf_counter() - start
     positions, normals, inward = (np.concatenate([getattr(r, name) if getattr(r, name) is not None else
                                                   np.zeros_like(r.positions) for r in receivers])
@@ -188,7 +188,7 @@ def timed_sample(receivers, occluders, settings: bake.BakeSettings, rays: int = 
     count = int(np.clip(rays // settings.samples, *SAMPLE_POINTS))
     chosen = np.unique(np.linspace(0, len(positions) - 1, count).astype(np.int64))
     probe = bake.Receiver("timed sample", positions[chosen], normals[chosen], 0, inward[chosen])
-    work = bake.bake_chunk(caster, probe, np.arange(len(chosen)), replace(settings, target_error=0.0))
+    work = estimator.bake_chunk(caster, probe, np.arange(len(chosen)), replace(settings, target_error=0.0))
     cast, start = 0, time.perf_counter()
     while True:
         try:

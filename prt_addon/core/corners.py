@@ -73,13 +73,13 @@ def unsplit_points(corner_vertices: np.ndarray, vertex_normals: np.ndarray) -> S
                          np.where(has_corners[:, None], vertex_normals, 0.0), count)
 
 
-# The points of a split vertex share their rays when their normals all lie within 60° of the group's mean normal n̄:
-# one ray origin then lies above all their tangent planes, and the cap that covers all their hemispheres (core.bake)
+# The points of a split vertex share their rays when their normals all lie within 60° of the group's mean normal n̄: one
+# ray origin then lies above all their tangent planes, and the cap that covers all their hemispheres (core.ray_groups)
 # keeps each point's weights below (1 − s)² ≤ 3.5. Sharper creases (a cube's corners, a thin sheet's rim) part a
-# vertex's points into several groups. On the flat-shaded cow at 256 samples, rays for the smooth bake's estimated
-# RMS error, relative, and the worst point's estimated error: 50° 1.289 (0.065), 60° 1.269 (0.065), 70° 1.261
-# (0.087), 90° 1.264 (0.109). Sharing only with the first corner's point, as before, needed 1.380 (0.071) at 70°: a
-# vertex's odd corners split off one by one, 533 points casting alone where 39 do now.
+# vertex's points into several groups. On the flat-shaded cow at 256 samples, rays for the smooth bake's estimated RMS
+# error, relative, and the worst point's estimated error: 50° 1.289 (0.065), 60° 1.269 (0.065), 70° 1.261 (0.087), 90°
+# 1.264 (0.109). Sharing only with the first corner's point, as before, needed 1.380 (0.071) at 70°: a vertex's odd
+# corners split off one by one, 533 points casting alone where 39 do now.
 SHARE_COSINE = float(np.cos(np.radians(60.0)))
 
 

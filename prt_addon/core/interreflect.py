@@ -28,7 +28,7 @@ class HitRecords:
     triangle: np.ndarray     # (H,) int64 index of the hit triangle
     barycentric: np.ndarray  # (H, 3) float64 weights of the triangle's corners at the hit point
     weight: np.ndarray       # (H,) float64 the ray's weight in its vertex's estimate
-    replicate: np.ndarray    # (H,) int64 the replicate the ray belongs to (core.bake: independent lattice shifts)
+    replicate: np.ndarray    # (H,) int64 the replicate the ray belongs to (core.estimator: independent lattice shifts)
 
     FIELDS = ("vertex", "triangle", "barycentric", "weight", "replicate")
 
@@ -75,20 +75,6 @@ class BounceOperator:
         for column in range(flat.shape[1]):
             out[:, column] = np.bincount(self.rows, self.values * flat[self.columns, column], minlength=self.size)
         return out.reshape(values.shape)
-
-
-def barycentric(points, corners) -> np.ndarray:
-    """(H, 3) weights of `points` (H, 3) in triangles `corners` (H, 3, 3); degenerate triangles get 1/3 each."""
-    a, b, c = corners[:, 0], corners[:, 1], corners[:, 2]
-    v0, v1, v2 = b - a, c - a, points - a
-    d00, d01, d11 = (v0 * v0).sum(1), (v0 * v1).sum(1), (v1 * v1).sum(1)
-    d20, d21 = (v2 * v0).sum(1), (v2 * v1).sum(1)
-    denominator = d00 * d11 - d01 * d01
-    safe = np.where(np.abs(denominator) > 0, denominator, 1.0)
-    v = np.clip((d11 * d20 - d01 * d21) / safe, 0.0, 1.0)
-    w = np.clip((d00 * d21 - d01 * d20) / safe, 0.0, 1.0 - v)
-    weights = np.stack([1.0 - v - w, v, w], axis=1)
-    return np.where((np.abs(denominator) > 0)[:, None], weights, 1.0 / 3.0)
 
 
 def bounce_operator(records: HitRecords, triangles: np.ndarray, size: int) -> BounceOperator:

@@ -1,7 +1,7 @@
 """The bake job: the state machine that bakes every receiver's chunks in this process or with worker processes
 (see workers), with progress, time left and cancel, and the results it hands back (per receiver, and a summary).
 
-Both ways run `bake.bake_chunk` on the same fixed chunks, so the results are bit-identical whatever the
+Both ways run `estimator.bake_chunk` on the same fixed chunks, so the results are bit-identical whatever the
 number of workers. `step()` returns after a bounded amount of work so a modal operator stays responsive.
 """
 
@@ -15,7 +15,7 @@ import time
 
 import numpy as np
 
-from . import bake, interreflect, job_file
+from . import bake, estimator, interreflect, job_file, lobes, scheduling
 from .progress import Job, Progress
 from .statistics import rms
 from .workers import (FORK, FORK_MIN_RAYS, TYPICAL_RAYS_PER_S, WORKER_MIN_RAYS, WORKER_START_S, ChunkQueue,
@@ -100,7 +100,7 @@ class TransferJob(Job):
         self.min_rays_for_workers = FORK_MIN_RAYS if worker_command == FORK else WORKER_MIN_RAYS
         self.worker_start_s = WORKER_START_S  # spawned workers: this process takes the share they start late
         self.owners = owners
-        self.chunks = bake.chunk_rows(receivers)
+        self.chunks = scheduling.chunk_rows(receivers)
         self.bake_only(shard)
         self.total_vertices = sum(len(r.positions) for r in receivers)
         self._vertex_offsets = np.cumsum([0] + [len(r.positions) for r in receivers])
@@ -205,7 +205,7 @@ class TransferJob(Job):
 
     def _bake_chunk_here(self, caster, chunk_index):
         receiver_index, rows = self.chunks[chunk_index]
-        work = bake.bake_chunk(caster, self.receivers[receiver_index], rows, self.settings)
+        work = estimator.bake_chunk(caster, self.receivers[receiver_index], rows, self.settings)
         while True:
             try:
                 self.rays += next(work)
@@ -325,7 +325,7 @@ class TransferJob(Job):
     # -- results --------------------------------------------------------------------------------------
     def results(self) -> list[ReceiverResult]:
         out = []
-        scale = bake.unshadowed_norm(self.settings.order)
+        scale = lobes.unshadowed_norm(self.settings.order)
         for index, receiver in enumerate(self.receivers):
             rel_error = self._std_error[index] / scale
             transfer = self._transfer[index]

@@ -8,14 +8,14 @@ import sys
 
 import numpy as np
 
-from . import bake, interreflect
+from . import bake, estimator, interreflect, ray_caster, scheduling
 
 OPTIONAL_RECEIVER_ARRAYS = ("inward", "ray_groups", "surface_step")  # bake.Receiver's, in their order
 
 
 def worker_process_command(python_prefix, job_file, out_file, chunk_indices):
-    """`python_prefix` runs a Python snippet with mathutils importable: [python, '-c'] with the bpy module,
-    [blender, '--background', '--factory-startup', '--python-expr'] in a real Blender."""
+    """`python_prefix` runs a Python snippet with mathutils importable (for the BVHTree engine): [python, '-c'] with
+    the bpy module, [blender, '--background', '--factory-startup', '--python-expr'] in a real Blender."""
     package_parent = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
     package = __name__.rsplit(".", 2)[0].rsplit(".", 1)[-1]
     snippet = (
@@ -39,7 +39,7 @@ def save_job(path, receivers, occluders, settings: bake.BakeSettings):
             if getattr(receiver, name) is not None:
                 arrays[f"{name}_{index}"] = getattr(receiver, name)
     meta = {"settings": settings.__dict__, "receivers": [[r.name, r.key] for r in receivers],
-            "solved_vertices": occluders.solved_vertices}
+            "solved_vertices": occluders.solved_vertices, "engine": occluders.engine}
     np.savez(path, meta=np.array(json.dumps(meta)), **arrays)
 
 
@@ -48,7 +48,7 @@ def load_job(path):
         meta = json.loads(str(data["meta"]))
         flat = [data[f"polygon_{index}"] for index in range(sum(name.startswith("polygon_") for name in data.files))]
         occluders = bake.Occluders(data["occluder_vertices"], data["occluder_triangles"], data["occluder_hull"], flat,
-                                   meta["solved_vertices"])
+                                   meta["solved_vertices"], meta["engine"])
         receivers = [bake.Receiver(name, data[f"positions_{i}"], data[f"normals_{i}"], key,
                                    *(data[f"{part}_{i}"] if f"{part}_{i}" in data else None
                                      for part in OPTIONAL_RECEIVER_ARRAYS))
@@ -93,11 +93,11 @@ def _load_records(data, prefix, slot):
 def bake_chunks(caster, receivers, settings, chunk_indices, out_file, stream):
     """A worker's work: bakes the chunks it is given (a list, or a shared queue it takes them from) with a
     progress line on `stream` after each, then saves the results and which chunks they are."""
-    chunks = bake.chunk_rows(receivers)
+    chunks = scheduling.chunk_rows(receivers)
     results = []
     for chunk_index in chunk_indices:
         receiver_index, rows = chunks[chunk_index]
-        work = bake.bake_chunk(caster, receivers[receiver_index], rows, settings)
+        work = estimator.bake_chunk(caster, receivers[receiver_index], rows, settings)
         rays = 0
         while True:
             try:
@@ -110,6 +110,7 @@ def bake_chunks(caster, receivers, settings, chunk_indices, out_file, stream):
 
 
 def worker_main(job_file, out_file, chunk_indices):
-    """Runs in a spawned worker process: loads the job, builds its own ray tree, bakes its chunks."""
+    """Runs in a spawned worker process: loads the job, builds its own ray caster (the job's engine), bakes its
+    chunks."""
     receivers, occluders, settings = load_job(job_file)
-    bake_chunks(bake.RayCaster(occluders), receivers, settings, chunk_indices, out_file, sys.stdout)
+    bake_chunks(ray_caster.RayCaster(occluders), receivers, settings, chunk_indices, out_file, sys.stdout)

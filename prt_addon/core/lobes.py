@@ -1,4 +1,5 @@
-"""SH projections of lighting: the clamped cosine, a sun disc, a constant sky and equirectangular HDRIs.
+"""SH projections of lighting: the clamped cosine (with the exact unshadowed transfer it gives a vertex), a sun
+disc, a constant sky and equirectangular HDRIs.
 
 Zonal lobes are returned as z_l, the projection onto Y_l0 of the lobe pointing at +Z; rotation.zonal_to_sh
 turns them into full coefficient vectors pointing anywhere.
@@ -57,6 +58,17 @@ def cosine_transfer(order, normals):
     """Unshadowed diffuse transfer T_lm = (Â_l/π)·Y_lm(n) for unit normals (N, 3) → (N, order²)."""
     band_factors = _clamped_cosine_eigenvalues(order) / np.pi
     return sh.evaluate(order, normals) * _per_coefficient(band_factors)
+
+
+def unshadowed_transfer(order: int, normals: np.ndarray) -> np.ndarray:
+    """Exact, noise-free: the clamped cosine rotated to each normal; zero where the normal is zero."""
+    return cosine_transfer(order, normals) * (np.abs(normals).sum(-1, keepdims=True) > 0)
+
+
+def unshadowed_norm(order: int) -> float:
+    """‖T_unshadowed‖, the same for every unit normal (addition theorem: Σ_m Y_lm(n)² = (2l+1)/4π):
+    the scale of each vertex's relative error."""
+    return float(np.linalg.norm(clamped_cosine_zonal(order)) / np.pi)
 
 
 def _legendre_slope_ratios(order, x):

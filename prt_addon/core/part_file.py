@@ -49,7 +49,7 @@ class PartShape:
     triangles: int      # the occluders' triangles a hit lands on
     replicates: int
     most_rays: int      # most rays a point's estimate uses (and records): twice its budget, as the target error's
-    #                     last round may overshoot the budget by a lattice size (bake._next_rounds)
+    #                     last round may overshoot the budget by a lattice size (scheduling.next_rounds)
 
     @staticmethod
     def of(job, probe_job) -> "PartShape":

@@ -4,7 +4,7 @@ The long straight edges of a floor, a wall or a ground plane are where a ray est
 convex polygon P seen from a vertex, the transfer P blocks, G_k = (1/π) ∫ over P's directions above the tangent
 plane of (n·ω) Y_k(ω) dω, has a closed form (axial moments over a spherical polygon, Arvo 1995, with each SH band
 written as a sum of zonal lobes, Wang & Ramamoorthi 2018), and whether a ray's direction hits P is a few dot
-products. The bake then sends rays only for what P does not explain (bake.py), so P's edges add no noise.
+products. The bake then sends rays only for what P does not explain (core.estimator), so P's edges add no noise.
 """
 
 from functools import lru_cache

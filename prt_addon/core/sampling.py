@@ -93,7 +93,7 @@ def cosine_lattice_directions(points, shifts, frames, floor=None, dtype=np.float
 
     With `floor` s (..., ≤ 0), the directions fill the larger cap z ≥ s, z = normal·d, with density
     (q + 1)(z − s)^q / (2π (1 − s)^(q+1)), q = CAP_EXPONENT (a group of nearby normals shares such a cap, see
-    core.bake and cap_weights). Its height is s + (1 − s)·(cos² θ)^(1/(q+1)) of the hemisphere's map, so the strata
+    core.estimator and cap_weights). Its height is s + (1 − s)·(cos² θ)^(1/(q+1)) of the hemisphere's map, so the strata
     stay equal-weight rings.
 
     Polar map (uniform on the disc, lifted to the hemisphere): the first coordinate is sin²θ, so its strata are

@@ -1,6 +1,6 @@
 """Farm shards: one bake split over N processes or machines (`prt bake --shard K/N --out PART.npz`), each leaving a
 part file, then merged (`prt merge`) into the bake one process would make, bit for bit. The chunks are fixed by the
-receivers alone (bake.chunk_rows); shard K bakes workers.shard_chunks' share of them; the merge stores every
+receivers alone (scheduling.chunk_rows); shard K bakes workers.shard_chunks' share of them; the merge stores every
 chunk's result where a one-process bake does, and bounces interreflections from the parts' hit records.
 
 A part file is an .npz: its chunks' results as job_file saves a worker's (transfer, standard error, rays, which
@@ -25,7 +25,7 @@ from . import fingerprint, job_file
 from .errors import InputError
 
 # Also names how chunks are cut and what the description holds: 4 parts a split vertex's points about their mean
-# normal, 5 gives chunks of shared ray groups twice the groups (bake.SHARED_CHUNK_FACTOR), 6 has each shard's
+# normal, 5 gives chunks of shared ray groups twice the groups (scheduling.SHARED_CHUNK_FACTOR), 6 has each shard's
 # seconds baking and workers (rays_s, workers: a merged bake's rays per second).
 PART_FORMAT = "prt-part-6"
 PROBES = "probe_"  # the prefix of the probes' arrays

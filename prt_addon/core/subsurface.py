@@ -23,7 +23,7 @@ base colour is the total diffuse reflectance R_d,total. R_d,total decreases mono
 (from 1 to 0), so s is found by bisection; then σ_t' = σ_tr/s, σ_a = (s²/3) σ_t', σ_s' = (1 − s²/3) σ_t'.
 
 Transfer: a source vertex q stands for a patch of area A_q receiving irradiance E_q = π Σ_k L_k T_k(q), with
-T the shadowed direct transfer of bake.py (which carries 1/π). Jensen's BSSRDF without the directional
+T the shadowed direct transfer of core.estimator (which carries 1/π). Jensen's BSSRDF without the directional
 Fresnel factors, S_d = R_d(r)/π, makes the exitant radiance at p
     L(p) = (1/π) Σ_q R_d(|p − q|) A_q E_q = Σ_k L_k Σ_q R_d(|p − q|) A_q T_k(q),
 so T_sss(p) = Σ_q w_pq T(q) with the π's cancelled, in the same convention as T: radiance = Σ_k L_k T_sss_k,

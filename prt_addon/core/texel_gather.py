@@ -16,7 +16,7 @@ bounce noise does: the gather repeated from each replicate's hit records alone, 
 
 import numpy as np
 
-from . import bake, interreflect
+from . import interreflect, lobes
 from .progress import Job
 
 
@@ -50,7 +50,7 @@ class GatheringJob(Job):
         spread = np.stack([gather(records.of_replicate(replicate, replicates), triangles, self.solved, self.albedo,
                                   rows) for replicate in range(replicates)])
         noise = np.sqrt((spread.var(axis=0, ddof=1) / replicates).sum(-1).mean(-1))  # (rows,) as interreflect's
-        scale = bake.unshadowed_norm(self.inner.settings.order)
+        scale = lobes.unshadowed_norm(self.inner.settings.order)
         offsets = np.cumsum([0] + [len(result.transfer) for result in results])
         for result, start, end in zip(results, offsets[:-1], offsets[1:]):
             part = gathered[start:end]

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import bake
+from . import bake, lobes
 from .job import ReceiverResult
 from .progress import Job, Progress
 
@@ -192,7 +192,7 @@ class RefiningJob(Job):
         self.states = {position: GridState(grid, settings.order) for position, grid in grids.items()}
         self.settings = settings
         self.target = target
-        self.scale = bake.unshadowed_norm(settings.order)
+        self.scale = lobes.unshadowed_norm(settings.order)
         self.make_job = make_job
         self.progress = Progress("PRT bake")
         self._rows = {position: state.lattice(self.strides[0]) for position, state in self.states.items()}

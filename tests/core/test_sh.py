@@ -110,7 +110,7 @@ def test_components_are_the_transpose_of_evaluate_exactly(order):
 
 @pytest.mark.parametrize("order, tolerance", [(4, 1e-6), (16, 2e-5)])
 def test_components_in_float32_match_float64_to_float32_rounding(order, tolerance):
-    """A shared ray group evaluates its rays' SH in float32 (core.bake.weight_dtype): within about 1e-6 of float64
+    """A shared ray group evaluates its rays' SH in float32 (core.ray_groups.weight_dtype): within about 1e-6 of float64
     at the default order 4, up to the bake's highest order 16, poles included."""
     d = np.vstack([POLES, random_directions(5000, seed=7)])
     components = sh.evaluate_components(order, d.astype(np.float32), np.float32)
