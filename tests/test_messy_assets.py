@@ -159,8 +159,8 @@ def missed(reason):
     "boxes crossing",  # RMS 1.24 %, p99 6.7 % at these settings (full run, 4 × 32: 0.00 %, 3.2 %)
     "wheel in arch",   # RMS 1.81 %, p99 16.0 % (full run: 1.09 %, 7.3 %)
     pytest.param("normals against winding", marks=missed(
-        "RMS 38.2 %, p99 183 %: 151 corners black in PRT and lit in Cycles, on the faces next to the reversed "
-        "ones (76 % of the squared difference)")),
+        "RMS 38.2 %, p99 183 %: 151 corners black in PRT and lit in Cycles (76 % of the squared difference), "
+        "most on correctly wound faces beside the reversed ones")),
     pytest.param("OBJ reversed vn", marks=missed(
         "RMS 32.0 %, p99 213 %: 119 corners black in PRT and lit in Cycles (73 %)")),
     pytest.param("sliver edges", marks=missed(
