@@ -1,7 +1,7 @@
 """Error against run time: bakes a scene at several sample counts and sets each bake's estimated error beside its
 actual error, as a CSV and a log-log plot against bake time.
 
-    .venv/bin/python benchmarks/convergence.py FILE [--samples 16,32,...] [--objects A,B] [--order 4]
+    .venv/bin/python benchmarks/convergence.py FILE [--samples 16,32,...] [--objects A,B] [--object NAME] [--order 4]
         [--reference bake|cycles] [--reference-samples N] [--workers N] [--seed 0]
         [--csv convergence.csv] [--plot convergence.png]
 
@@ -29,7 +29,8 @@ import numpy as np  # noqa: E402
 
 from prt_addon.blender import storage, validation  # noqa: E402
 from prt_addon.blender.scene_bake import SceneBake  # noqa: E402
-from prt_addon.commands.common import log, names, open_file, schema_registered, warn  # noqa: E402
+from prt_addon.commands.common import (  # noqa: E402
+    add_object_options, log, object_names, open_file, schema_registered, warn)
 from prt_addon.core.bake import BakeSettings, unshadowed_norm  # noqa: E402
 from prt_addon.core.errors import InputError  # noqa: E402
 from prt_addon.core.progress import Job, Progress  # noqa: E402
@@ -242,7 +243,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("file", help=".blend file")
     parser.add_argument("--samples", type=sample_counts, default=DEFAULT_SAMPLES, metavar="16,32,...",
                         help="rays per vertex of each bake (default 16,32,...,4096)")
-    parser.add_argument("--objects", help="comma-separated receiver names (default: every visible mesh)")
+    add_object_options(parser, "every visible mesh")
     parser.add_argument("--order", type=int, default=4, help="SH bands, 1-10")
     parser.add_argument("--reference", choices=REFERENCES, default="bake",
                         help="bake: a bake at 16x the largest count, another seed (default); cycles: Cycles "
@@ -262,7 +263,7 @@ def main(argv=None) -> int:
     try:
         with schema_registered():  # the scene's SH lights, which the Cycles reference shines
             open_file(args.file, required=True)
-            study = Study(bpy.context, args.samples, names(args.objects), args.order, args.reference,
+            study = Study(bpy.context, args.samples, object_names(args), args.order, args.reference,
                           args.reference_samples, args.workers, args.seed)
             rows = study.run(log=log)
     except InputError as failure:
