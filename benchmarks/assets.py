@@ -82,19 +82,20 @@ def evaluated_world_positions(ob) -> np.ndarray:
         evaluated.to_mesh_clear()
 
 
-def place(ob, size: float = ASSET_SIZE):
-    """Scales the object uniformly (its transform, as a user scales it) so that its largest world dimension is
-    `size`, centres it over the origin and rests its lowest point on the floor (z = 0)."""
-    world = evaluated_world_positions(ob)
+def place(objects: list, size: float = ASSET_SIZE):
+    """Scales the objects uniformly together (their transforms, as a user scales a selection about one pivot) so
+    that their largest world dimension is `size`, centres them over the origin and rests their lowest point on the
+    floor (z = 0). Objects without parents only."""
+    world = np.concatenate([evaluated_world_positions(ob) for ob in objects])
     low, high = world.min(axis=0), world.max(axis=0)
     factor = size / float((high - low).max())
     anchor = np.array([(low[0] + high[0]) / 2, (low[1] + high[1]) / 2, low[2]])
-    # world' = factor · (world − anchor): the scale is about the object's origin, so the origin moves too.
-    location = factor * (np.array(ob.location) - anchor)
-    ob.scale = [factor * s for s in ob.scale]
-    ob.location = location.tolist()
+    # world' = factor · (world − anchor): a uniform scale commutes with each object's rotation, so scaling its
+    # transform and moving its origin does it.
+    for ob in objects:
+        ob.location = (factor * (np.array(ob.location) - anchor)).tolist()
+        ob.scale = [factor * s for s in ob.scale]
     bpy.context.view_layer.update()
-    return ob
 
 
 def add_floor():
@@ -199,7 +200,7 @@ def thin_sheet():
 @dataclass(frozen=True)
 class Case:
     name: str
-    build: object        # () → the asset object (None: the demo scene, baked whole)
+    build: object        # () → the asset object or a list of them (None: the demo scene, baked whole)
     small: bool = False  # in --quick
     what: str = ""
 
@@ -218,11 +219,10 @@ CASES = [
     Case("thin sheet", thin_sheet, small=True, what="Solidify 0.005 applied, leaning"),
     Case(DEMO, None, what="sample_scenes.build_demo_scene(), every mesh baked"),
 ]
-CASE_NAMES = [case.name for case in CASES]
 
 
-def case_named(name) -> Case:
-    return next(case for case in CASES if case.name == name)
+def case_named(name, cases=CASES) -> Case:
+    return next(case for case in cases if case.name == name)
 
 
 def build_case(case: Case) -> list:
@@ -231,10 +231,11 @@ def build_case(case: Case) -> list:
     if case.build is None:
         objects = sample_scenes.build_demo_scene()
         return [ob.name for ob in objects.values() if ob.type == "MESH"]
-    ob = case.build()
-    place(ob)
+    built = case.build()
+    objects = built if isinstance(built, list) else [built]
+    place(objects)
     add_floor()
-    return [ob.name]
+    return [ob.name for ob in objects]
 
 
 # -- measuring one case ------------------------------------------------------------------------------------------
@@ -358,7 +359,7 @@ def measure(case: Case, settings: Settings, log=print) -> tuple:
     check, comparisons, report = validate(names, settings)
     log(f"  reference bake, {settings.reference_samples} samples")
     reference = reference_error(scene_bake, settings)
-    compared = report if case.build is None else report["per_object"][names[0]]
+    compared = report if len(names) > 1 else report["per_object"][names[0]]
     parts, touching = [], {}
     for ob, receiver in zip(scene_bake.objects, scene_bake.job.receivers):
         colours, passes, rows = compared_colours(check, ob)
@@ -468,7 +469,7 @@ def goal_lines(rows) -> list[str]:
 
 
 # -- the run -----------------------------------------------------------------------------------------------------
-def build_parser():
+def build_parser(cases):
     parser = argparse.ArgumentParser(description="real assets baked at the defaults, validated against Cycles")
     parser.add_argument("--quick", action="store_true",
                         help="smoke run: the small cases only, 64-sample bakes, Cycles 2 × 16 samples")
@@ -477,7 +478,7 @@ def build_parser():
     parser.add_argument("--passes", type=int, help=f"Cycles passes (default {validation.DEFAULT_PASSES}; "
                         f"--quick 2)")
     parser.add_argument("--cases", help="comma-separated case names (default: all; --quick: the small ones): "
-                        + ", ".join(CASE_NAMES))
+                        + ", ".join(case.name for case in cases))
     parser.add_argument("--reference-points", type=int, default=Settings.reference_points,
                         help="shading points per case the reference bake bakes (default %(default)s)")
     parser.add_argument("--workers", type=int, default=1, help="bake workers (default 1, the add-on's default)")
@@ -485,23 +486,27 @@ def build_parser():
     return parser
 
 
-def main(argv=None) -> int:
-    args = build_parser().parse_args(argv)
+def main(argv=None, catalogue=CASES, title="assets", diagnose=None) -> int:
+    """Runs the catalogue's cases (all, --quick's small ones, or --cases) and prints the table and the goals.
+    diagnose(names, check) → dict, when given, looks into each case after it is measured: its "line" is printed
+    after the table, the dict goes into the JSON."""
+    args = build_parser(catalogue).parse_args(argv)
+    names = [case.name for case in catalogue]
     settings = Settings(bake_samples=64 if args.quick else 256,
                         cycles_samples=args.samples or (16 if args.quick else validation.DEFAULT_SAMPLES),
                         passes=args.passes or (2 if args.quick else validation.DEFAULT_PASSES),
                         reference_points=args.reference_points, workers=args.workers)
     if args.cases:
         wanted = [name.strip() for name in args.cases.split(",")]
-        unknown = [name for name in wanted if name not in CASE_NAMES]
+        unknown = [name for name in wanted if name not in names]
         if unknown:
-            print(f"assets: error: no case {', '.join(map(repr, unknown))}; cases: {', '.join(CASE_NAMES)}",
+            print(f"{title}: error: no case {', '.join(map(repr, unknown))}; cases: {', '.join(names)}",
                   file=sys.stderr)
             return 1
-        cases = [case_named(name) for name in wanted]
+        cases = [case_named(name, catalogue) for name in wanted]
     else:
-        cases = [case for case in CASES if case.small or not args.quick]
-    print(f"assets benchmark: {len(cases)} cases; bake order 4 shadowed, {settings.bake_samples} samples, "
+        cases = [case for case in catalogue if case.small or not args.quick]
+    print(f"{title} benchmark: {len(cases)} cases; bake order 4 shadowed, {settings.bake_samples} samples, "
           f"{settings.workers} worker(s); Cycles {settings.passes} × {settings.cycles_samples} samples; reference "
           f"{settings.reference_samples} samples at up to {settings.reference_points} points per case"
           + ("  (quick: the goals are for the full run)" if args.quick else ""), flush=True)
@@ -510,6 +515,8 @@ def main(argv=None) -> int:
         for case in cases:
             row, check, touching = measure(case, settings, log=lambda line: print(line, flush=True))
             rows.append(row)
+            if diagnose is not None:
+                extra.setdefault("diagnosis", {})[case.name] = diagnose(list(touching), check)
             if case.name == "sphere flat":  # the same sphere baked with its smooth vertex normals instead
                 (name,) = touching
                 extra["sphere_flat_vs_smooth_normals"] = smooth_normal_errors(name, check, touching[name], settings)
@@ -525,6 +532,10 @@ def main(argv=None) -> int:
     for row in rows:
         print(f"  {row.case}: {row.touching} on the floor; without them RMS {100 * row.off_floor_rms:.2f} %, "
               f"p99 {100 * row.off_floor_p99:.1f} %")
+    if "diagnosis" in extra:
+        print("\nWhere each case differs (rows: count and share of the squared difference; Cycles' noise in):")
+    for name, found in extra.get("diagnosis", {}).items():
+        print(f"  {name}: {found['line']}")
     if "sphere_flat_vs_smooth_normals" in extra:
         errors = extra["sphere_flat_vs_smooth_normals"]
         print(f"sphere flat baked with its smooth vertex normals instead, against the same Cycles corners: RMS "

@@ -1,7 +1,7 @@
 """Error against run time: bakes a scene at several sample counts and sets each bake's estimated error beside its
 actual error, as a CSV and a log-log plot against bake time.
 
-    .venv/bin/python benchmarks/convergence.py FILE [--samples 16,32,...] [--objects A,B] [--order 4]
+    .venv/bin/python benchmarks/convergence.py FILE [--samples 16,32,...] [--objects A,B] [--object NAME] [--order 4]
         [--reference bake|cycles] [--reference-samples N] [--workers N] [--seed 0]
         [--csv convergence.csv] [--plot convergence.png] [--quick]
 
