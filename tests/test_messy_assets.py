@@ -155,6 +155,7 @@ def missed(reason):
     return pytest.mark.xfail(strict=True, reason=f"today's bake misses the goals: {reason} (4 × 16 samples)")
 
 
+@pytest.mark.study  # Cycles renders of every case: once per CI run, on the newest Blender
 @pytest.mark.parametrize("name", [
     "boxes crossing",  # RMS 1.24 %, p99 6.7 % at these settings (full run, 4 × 32: 0.00 %, 3.2 %)
     "wheel in arch",   # RMS 1.81 %, p99 16.0 % (full run: 1.09 %, 7.3 %)
@@ -177,6 +178,7 @@ def test_a_messy_case_meets_the_goals(measured, name):
     assert 1 / HONEST <= row.honesty <= HONEST, (name, row)
 
 
+@pytest.mark.study
 def test_the_diagnosis_finds_the_faults_where_they_are(measured):
     """The benchmark's diagnosis counts, among the compared rows, the corners whose normal is against their face
     (the 219 corners of the sphere's 57 reversed faces: 288 // 5 faces, 3 corners at a pole, else 4) and those on
