@@ -41,13 +41,10 @@ def render(scene, path, engine="EEVEE", samples=4, resolution=None) -> float:
         scene.render.resolution_x, scene.render.resolution_y = resolution
         scene.render.resolution_percentage = 100
     scene.render.image_settings.file_format = image_format(path)
-    kept = scene.render.filepath, scene.render.use_file_extension
-    scene.render.use_file_extension = False  # the path as given: Blender would add its format's suffix
     start = time.perf_counter()
-    try:
-        with writing_image(path) as temporary:
-            scene.render.filepath = temporary
-            bpy.ops.render.render(write_still=True)
-    finally:  # the scene's own output path, not the temporary file's
-        scene.render.filepath, scene.render.use_file_extension = kept
+    with writing_image(path) as temporary:
+        bpy.ops.render.render(scene=scene.name)
+        # At exactly the path given (a still's output would get its format's suffix), through the scene's view
+        # transform and image settings as a still's.
+        bpy.data.images["Render Result"].save_render(filepath=temporary, scene=scene)
     return time.perf_counter() - start
