@@ -278,7 +278,8 @@ def _lit_pixels(covered, cycles) -> np.ndarray:
 
 
 def _write_heatmap(path, lit, errors, resolution):
-    """An image (its suffix's format) of each lit pixel's error (viridis, 0 to the 99th percentile rounded up), grey where not compared."""
+    """An image (in its suffix's format) of each lit pixel's error (viridis, 0 to the 99th percentile rounded up),
+    grey where not compared."""
     width, height = resolution
     srgb = np.tile(np.array(UNLIT_SRGB), (width * height, 1))
     top = heatmap.scale_top(errors)

@@ -90,8 +90,8 @@ def check_suffix(path: str, option: str, suffixes):
 def replacing(path: str):
     """Yields a temporary path beside `path`, ending as it does (writers that choose a format by the suffix see
     the same one), for the body to write; renames it over `path` once the body succeeds, and removes it when the
-    body fails, leaving any previous file at `path` untouched (an OSError becomes an InputError naming `path`). A symbolic link at `path` is written through: its
-    target is replaced. Missing folders are created."""
+    body fails, leaving any previous file at `path` untouched (an OSError becomes an InputError naming `path`).
+    A symbolic link at `path` is written through: its target is replaced. Missing folders are created."""
     target = os.path.realpath(path)
     folder = os.path.dirname(target)
     os.makedirs(folder, exist_ok=True)
