@@ -29,10 +29,13 @@ def findings(scene_bake, subject):
 
 
 # -- paths -------------------------------------------------------------------------------------------------------
-def test_an_output_in_a_missing_folder_is_an_error_naming_the_first_missing_folder(tmp_path):
-    check = checks.writable_check(str(tmp_path / "missing" / "deeper" / "out.blend"), "output", required=True)
-    assert check.level == checks.ERROR
-    assert f"the folder {tmp_path / 'missing'} does not exist" in check.text
+def test_an_output_in_missing_folders_is_fine_they_are_created_but_not_a_read_only_file(tmp_path):
+    assert checks.writable_check(str(tmp_path / "missing" / "deeper" / "out.blend"), "output",
+                                 required=True).level == checks.OK
+    (tmp_path / "kept.blend").write_text("")
+    (tmp_path / "kept.blend").chmod(0o444)  # read-only for everyone: refused even for root, who could write it
+    check = checks.writable_check(str(tmp_path / "kept.blend"), "output", required=True)
+    assert check.level == checks.ERROR and "the file there is read-only" in check.text
 
 
 def test_an_output_under_a_file_is_an_error_and_a_warning_where_saving_can_wait(tmp_path):
@@ -239,14 +242,15 @@ def test_the_panel_draws_the_checklist_under_the_bake_button(empty_scene):
 
 
 # -- the command line ----------------------------------------------------------------------------------------------
-def test_cli_refuses_a_missing_output_folder_before_baking_and_leaves_the_file(tmp_path, sample_scene_files):
+def test_cli_refuses_an_output_under_a_file_before_baking_and_leaves_the_file(tmp_path, sample_scene_files):
     path = tmp_path / "suzanne.blend"
     path.write_bytes((sample_scene_files / "suzanne.blend").read_bytes())
     before = path.read_bytes()
-    result = run_cli("bake", path, "--output", tmp_path / "missing_folder" / "out.blend", cwd=tmp_path)
+    (tmp_path / "notes.txt").write_text("a file, not a folder")
+    result = run_cli("bake", path, "--output", tmp_path / "notes.txt" / "out.blend", cwd=tmp_path)
     assert result.returncode == 1
     errors = [line for line in result.stderr.splitlines() if line.startswith("prt:")]
-    assert len(errors) == 1 and f"the folder {tmp_path / 'missing_folder'} does not exist" in errors[0]
+    assert len(errors) == 1 and f"{tmp_path / 'notes.txt'} is not a folder" in errors[0]
     assert "PRT bake" not in result.stdout  # not one progress line: nothing was baked
     assert path.read_bytes() == before
 

@@ -30,7 +30,7 @@ from test_stale import stored
 from prt_addon.blender import storage
 from prt_addon.blender.scene_bake import SceneBake
 from prt_addon.commands import farm_dask
-from prt_addon.core import settings as spec
+from prt_addon.core import outputs, settings as spec
 from prt_addon.core.bake import BakeSettings
 from prt_addon.core.errors import InputError
 from prt_addon.core.workers import shard_chunks
@@ -177,7 +177,7 @@ def test_merged_shards_are_bit_identical_to_one_bake_and_a_retried_shard_writes_
     first = part_arrays(parts[1])
     ok(run_cli("bake", scenes["room"], "--shard", "2/4", "--out", parts[1], *options))
     assert part_arrays(parts[1]) == first
-    assert not list(parts[1].parent.glob(".prt_part_*"))  # the atomic write left no temporary file
+    assert not list(parts[1].parent.glob(outputs.TEMPORARY_PREFIX + "*"))  # the atomic write left no temporary file
 
 
 @pytest.fixture(scope="module")

@@ -18,7 +18,7 @@ import os
 import bpy
 import numpy as np
 
-from ..core import glb, gltf_pack, lights as core_lights, shading, texels
+from ..core import glb, gltf_pack, lights as core_lights, outputs, shading, texels
 from ..core.errors import InputError
 from . import display, materials, storage, texel_maps
 from .lights import scene_lights
@@ -26,13 +26,14 @@ from .lights import scene_lights
 COPY_PREFIX = "PRT glTF "  # names of the temporary copies; taken off again in the file
 EXPORT_SCENE = "PRT glTF export"
 EXPORTER_ADDON = "io_scene_gltf2"
+SUFFIXES = (".glb",)  # glTF binary only: the transfer's data textures are buffer views of its one binary chunk
 DISPLAY_SETTINGS = ("show_prt", "use_albedo", "mode", "window")  # so the relighting leaves the user's data alone
 
 
 def export(scene, path: str, profile_name: str) -> dict:
-    """Writes the scene's baked meshes to `path` (.glb) packed for the profile; returns what it wrote, with notes
-    on materials left out (materials.lost_note). Nothing is created before the packing fits the profile (a refusal
-    names the limit)."""
+    """Writes the scene's baked meshes to `path` (.glb) packed for the profile, whole or not at all; returns what it
+    wrote, with notes on materials left out (materials.lost_note). Nothing is created before the packing fits the
+    profile (a refusal names the limit)."""
     profile = gltf_pack.PROFILES.get(profile_name)
     if profile is None:
         raise InputError(f"unknown profile {profile_name!r}: expected one of {', '.join(gltf_pack.PROFILES)}")
@@ -44,19 +45,20 @@ def export(scene, path: str, profile_name: str) -> dict:
     orders = {meta["order"] for _, _, meta, _, _ in baked}
     cache = core_lights.LightCache()
     totals = cache.totals(shining, orders, window)
-    with _export_scene(scene) as temporary:
-        for ob, transfer, meta, corner_points, _ in baked:
-            mesh = _link_copy(temporary, ob).data
-            _write_packing(mesh, packs[ob.name], corner_points)
-            display.write_display_colours(mesh, transfer, totals[meta["order"]], corner_points)
-        if scene.camera is not None:
-            _link_copy(temporary, scene.camera)
-        _run_exporter(temporary, path)
     top_order = max(orders)
-    _finish_file(path, scene.name, packs, {
-        "profile": profile.name, "convention": gltf_pack.CONVENTION, "order": top_order, **_window_extras(window, cache),
-        "light_source": light_source, "active_light": scene.prt_active_light,
-        "lights": gltf_pack.light_extras(shining, top_order)})
+    with outputs.replacing(path) as written:  # the exporter's file and the extras added to it: whole or nothing
+        with _export_scene(scene) as temporary:
+            for ob, transfer, meta, corner_points, _ in baked:
+                mesh = _link_copy(temporary, ob).data
+                _write_packing(mesh, packs[ob.name], corner_points)
+                display.write_display_colours(mesh, transfer, totals[meta["order"]], corner_points)
+            if scene.camera is not None:
+                _link_copy(temporary, scene.camera)
+            _run_exporter(temporary, written)
+        _finish_file(written, scene.name, packs, {
+            "profile": profile.name, "convention": gltf_pack.CONVENTION, "order": top_order,
+            **_window_extras(window, cache), "light_source": light_source, "active_light": scene.prt_active_light,
+            "lights": gltf_pack.light_extras(shining, top_order)})
     return {"path": os.path.abspath(path), "profile": profile.name, "objects": list(packs),
             "packs": packs, "light_source": light_source,
             "notes": [note for note in (materials.lost_note(ob) for ob, *_ in baked) if note is not None]}

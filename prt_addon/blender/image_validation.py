@@ -32,7 +32,7 @@ import numpy as np
 from ..core import heatmap, lobes
 from ..core.errors import InputError
 from ..core.statistics import compare
-from . import display as prt_display, heatmaps, storage
+from . import display as prt_display, heatmaps, outputs, storage
 from .compat import eevee_engine_id, new_node_material, new_node_world
 from .relighting import Relighter, paused
 from .cycles import environment_image, not_baked, real_light_world, rendered_meshes, scene_restored
@@ -278,7 +278,8 @@ def _lit_pixels(covered, cycles) -> np.ndarray:
 
 
 def _write_heatmap(path, lit, errors, resolution):
-    """A PNG of each lit pixel's error (viridis, 0 to the 99th percentile rounded up), grey where not compared."""
+    """An image (in its suffix's format) of each lit pixel's error (viridis, 0 to the 99th percentile rounded up),
+    grey where not compared."""
     width, height = resolution
     srgb = np.tile(np.array(UNLIT_SRGB), (width * height, 1))
     top = heatmap.scale_top(errors)
@@ -287,10 +288,8 @@ def _write_heatmap(path, lit, errors, resolution):
     image = bpy.data.images.new("PRT image error", width, height, alpha=True)
     try:
         image.pixels.foreach_set(rgba.ravel())
-        image.filepath_raw = os.path.abspath(path)
-        image.file_format = "PNG"
-        os.makedirs(os.path.dirname(image.filepath_raw), exist_ok=True)
-        image.save()
+        image.file_format = outputs.image_format(path)
+        outputs.save_image(image, path)
     finally:
         bpy.data.images.remove(image)
     return top

@@ -1,10 +1,9 @@
-"""Rendering what the PRT display shows, from the scene's camera, to a PNG.
+"""Rendering what the PRT display shows, from the scene's camera, to an image (.png or .jpg: blender.outputs).
 
 EEVEE renders the display materials (PRT colour × albedo texture); Workbench renders the colour attribute alone.
 Both use the Standard view transform, so a pixel is the sRGB encoding of the radiance, not a tone-mapped look.
 """
 
-import os
 import time
 
 import bpy
@@ -12,6 +11,7 @@ import bpy
 from ..core.errors import InputError
 from .compat import eevee_engine_id
 from .display import DISPLAY_ATTRIBUTE
+from .outputs import image_format, writing_image
 
 ENGINES = ("EEVEE", "WORKBENCH")
 
@@ -21,7 +21,8 @@ def engine_id(engine: str) -> str:
 
 
 def render(scene, path, engine="EEVEE", samples=4, resolution=None) -> float:
-    """Renders the scene's camera view to a PNG; returns the seconds it took."""
+    """Renders the scene's camera view to `path` in its suffix's format, whole or not at all; returns the seconds
+    it took."""
     if engine not in ENGINES:
         raise InputError(f"unknown engine {engine!r}: expected one of {', '.join(ENGINES)}")
     if scene.camera is None:
@@ -39,9 +40,11 @@ def render(scene, path, engine="EEVEE", samples=4, resolution=None) -> float:
     if resolution is not None:
         scene.render.resolution_x, scene.render.resolution_y = resolution
         scene.render.resolution_percentage = 100
-    scene.render.image_settings.file_format = "PNG"
-    scene.render.filepath = os.path.abspath(path)
-    os.makedirs(os.path.dirname(scene.render.filepath), exist_ok=True)
+    scene.render.image_settings.file_format = image_format(path)
     start = time.perf_counter()
-    bpy.ops.render.render(write_still=True)
+    with writing_image(path) as temporary:
+        bpy.ops.render.render(scene=scene.name)
+        # At exactly the path given (a still's output would get its format's suffix), through the scene's view
+        # transform and image settings as a still's.
+        bpy.data.images["Render Result"].save_render(filepath=temporary, scene=scene)
     return time.perf_counter() - start

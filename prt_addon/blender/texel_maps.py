@@ -19,7 +19,7 @@ import numpy as np
 
 from ..core import texels
 from ..core.errors import InputError, StaleBake
-from . import storage
+from . import outputs, storage
 
 PRT_UV_MAP = "PRT Lightmap"
 STORAGE_KEY = "storage"  # in the metadata: "TEXEL"; vertex bakes have none (or "VERTEX")
@@ -144,14 +144,18 @@ def read_error(mesh) -> np.ndarray:
     return pixels.reshape(meta["height"], meta["width"], 4)[..., 0]
 
 
+def exr_paths(mesh, stem: str) -> list[str]:
+    """Where save_exr writes the mesh's maps: `<stem>_t00.exr`, ..., `<stem>_error.exr`."""
+    return [f"{stem}_t{j:02d}.exr" for j in range(len(mesh[storage.METADATA_KEY]["images"]))] + [f"{stem}_error.exr"]
+
+
 def save_exr(mesh, stem: str) -> list[str]:
-    """Writes the mesh's maps as 32-bit OpenEXR files `<stem>_t00.exr`, ..., `<stem>_error.exr`; returns their
-    paths. The packed images stay as they are."""
+    """Writes the mesh's maps as 32-bit OpenEXR files (exr_paths), each whole or not at all; returns their paths.
+    The packed images stay as they are."""
     meta = mesh[storage.METADATA_KEY]
-    names = list(meta["images"]) + [meta["error_image"]]
-    paths = [f"{stem}_t{j:02d}.exr" for j in range(len(meta["images"]))] + [f"{stem}_error.exr"]
-    for name, path in zip(names, paths):
-        bpy.data.images[name].save(filepath=path)
+    paths = exr_paths(mesh, stem)
+    for name, path in zip(list(meta["images"]) + [meta["error_image"]], paths):
+        outputs.save_image(bpy.data.images[name], path)
     return paths
 
 

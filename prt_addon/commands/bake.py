@@ -13,7 +13,8 @@ from ..core.bake import BakeSettings
 from ..core.errors import InputError
 from ..core.shards import Stopwatch, shard_of
 from . import farm_dask, light_options
-from .common import add_object_options, check_writable, log, object_names, open_file, save_bake, warn
+from .common import (add_object_options, check_outputs, log, object_names, open_file, save_bake, saved_file,
+                     warn)
 
 RELIGHTING = True  # the relighting handlers keep the saved file's PRT colours current with its SH lights
 
@@ -93,10 +94,9 @@ def run(args, in_blender: bool) -> int:
     stopwatch = Stopwatch()  # a shard's part counts its seconds from here: its file opened, gathered, baked, written
     settings = settings_from(args)
     shard = _farm_options(args)
-    for path in (args.out, args.report):
-        if path:
-            check_writable(path)
     open_file(args.file, required=not in_blender)
+    check_outputs([("--out", args.out)] if shard else [("--report", args.report)], [("--env", args.env)],
+                  saved=None if shard else saved_file(args.output))
     workers = getattr(args, "workers", spec.WORKERS.default)
     receivers = object_names(args)
     if shard:

@@ -1,15 +1,17 @@
-"""What several commands share: opening the file, names from a comma list, JSON reports, logging, and registering
-the saved settings' schema and the relighting handlers for the bpy module."""
+"""What several commands share: opening the file, checking and writing the outputs (core.outputs' rules), names
+from a comma list, logging, and registering the saved settings' schema and the relighting handlers for the bpy
+module."""
 
 import argparse
 from contextlib import contextmanager
-import json
 import os
 import sys
 
 import bpy
 
+from ..blender.outputs import save_blend, used_files
 from ..core.errors import InputError
+from ..core.outputs import check, same_file, write_json
 
 
 @contextmanager
@@ -57,23 +59,31 @@ def whole_number(option: str, at_least: int):
     return parse
 
 
-def check_writable(path):
-    """Refuses, before any work is spent, a path that cannot be written: its nearest existing folder must be a
-    writable folder (the folders below it are created when writing)."""
-    folder = os.path.dirname(os.path.abspath(path))
-    while not os.path.exists(folder):
-        folder = os.path.dirname(folder)
-    if os.path.isdir(path) or not os.path.isdir(folder) or not os.access(folder, os.W_OK):
-        raise InputError(f"cannot write {path}: {folder} is not a writable folder")
+def saved_file(output) -> tuple[str, str]:
+    """(what, path) of the .blend a bake saves: --output, else the open file; refused without either."""
+    if output:
+        return "--output", output
+    if not bpy.data.filepath:
+        raise InputError("the scene has no file to save over; give --output")
+    return "the bake saved over the open file", bpy.data.filepath
+
+
+def check_outputs(outputs, inputs=(), saved=None):
+    """Refuses, before any work and in one line, outputs that would replace an input or each other, or that cannot
+    be written (core.outputs' rules). `outputs` and `inputs` are (what, path) pairs, a path None left out; the open
+    .blend and every file it uses are inputs too. `saved` is the .blend the command saves (saved_file), which may
+    be the open file: a bake saves over it unless given --output."""
+    opened = bpy.data.filepath
+    replaced = saved is not None and bool(opened) and same_file(saved[1], opened)
+    inputs = [*inputs, *([("the open file", opened)] if opened and not replaced else []),
+              *(("a file the open .blend uses,", path) for path in used_files())]
+    check([*([saved] if saved else []), *outputs], inputs)
 
 
 def save_bake(scene_bake, output, report):
-    """Saves the baked scene (over the opened file without `output`) and its JSON report."""
-    output = output or bpy.data.filepath
-    if not output:
-        raise InputError("the scene has no file; give --output")
-    os.makedirs(os.path.dirname(os.path.abspath(output)), exist_ok=True)
-    bpy.ops.wm.save_as_mainfile(filepath=os.path.abspath(output))
+    """Saves the baked scene (over the opened file without `output`) and its JSON report, each whole or not at
+    all."""
+    save_blend(saved_file(output)[1])
     if report:
         write_json(report, scene_bake.report().as_dict())
 
@@ -91,12 +101,6 @@ def object_names(args):
     """The names --objects and --object give, in order, each once; None when neither gives one."""
     split = [name.strip() for name in args.objects.split(",")] if args.objects else []
     return list(dict.fromkeys(split + (args.object_names or []))) or None
-
-
-def write_json(path, data):
-    os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
-    with open(path, "w", encoding="utf-8") as handle:
-        json.dump(data, handle, indent=2)
 
 
 def log(line):

@@ -12,17 +12,19 @@ import time
 import bpy
 
 from ..blender import lights, sample_scenes
+from ..blender.outputs import save_blend
 from ..blender.relighting import Relighter
 from ..blender.scene_bake import SceneBake
 from ..blender.schema import add_light
 from ..core import bake
-from .common import log, write_json
+from .common import check_outputs, log, write_json
 from .relight import relight_file
 
 SUN_IRRADIANCE = 2.0
 SKY_RADIANCE = 0.15
 MOVED_SUN = (40.0, 120.0)  # θ, φ in degrees: behind and to the left, so the torus's shadow falls forward
 RENDER_SAMPLES = 8
+BLEND, RENDERS, REPORT = "demo_baked.blend", ("demo.png", "demo_moved.png"), "demo_report.json"  # in --output
 
 
 def add_parser(commands):
@@ -37,18 +39,17 @@ def run(args, in_blender: bool) -> int:
 
 
 def demo(output: str, workers: int = 2, samples: int = 256) -> int:
-    os.makedirs(output, exist_ok=True)
-    blend_path = os.path.abspath(os.path.join(output, "demo_baked.blend"))
+    blend_path, report_path = (os.path.abspath(os.path.join(output, name)) for name in (BLEND, REPORT))
+    check_outputs([(f"the demo's {name}", os.path.join(output, name)) for name in (BLEND, *RENDERS, REPORT)])
     baked = save_baked_demo(blend_path, workers, samples)
     renders = [
-        relight_file(blend_path, os.path.join(output, "demo.png"), samples=RENDER_SAMPLES),
-        relight_file(blend_path, os.path.join(output, "demo_moved.png"), light_index=0,
+        relight_file(blend_path, os.path.join(output, RENDERS[0]), samples=RENDER_SAMPLES),
+        relight_file(blend_path, os.path.join(output, RENDERS[1]), light_index=0,
                      theta_deg=MOVED_SUN[0], phi_deg=MOVED_SUN[1], samples=RENDER_SAMPLES),
     ]
     for done in renders:
         log(f"prt demo: rendered {done['path']} with {done['engine']} in {done['render_s']:.1f} s")
     report = {**baked, "renders": renders, "blend": blend_path}
-    report_path = os.path.join(output, "demo_report.json")
     write_json(report_path, report)
     print(f"prt demo: wrote {', '.join(done['path'] for done in renders)}, {blend_path} and {report_path}")
     return 0
@@ -72,7 +73,7 @@ def save_baked_demo(blend_path: str, workers: int, samples: int) -> dict:
     start = time.perf_counter()
     Relighter().refresh(scene, bpy.context.evaluated_depsgraph_get())
     relight_s = time.perf_counter() - start
-    bpy.ops.wm.save_as_mainfile(filepath=blend_path)
+    save_blend(blend_path)
     return {"bake": bake_report,
             "relight": {"lights": [lights.describe(entry, scene) for entry in scene.prt_lights],
                         "display": "PRT colour attribute × albedo texture (display materials)",

@@ -11,7 +11,8 @@ import numpy as np
 from ..blender import geometry, gltf, mesh_arrays, storage, texel_maps
 from ..core.errors import InputError
 from ..core.gltf_pack import PROFILES, PackedMaps
-from .common import open_file, warn
+from ..core.outputs import check_suffix, replacing
+from .common import check_outputs, open_file, warn
 
 
 def add_parser(commands):
@@ -19,7 +20,7 @@ def add_parser(commands):
                                  "for use outside Blender")
     parser.add_argument("file", help=".blend file")
     parser.add_argument("--object", help="object name (with --npz)")
-    parser.add_argument("--npz", help="output .npz path")
+    parser.add_argument("--npz", help="output .npz path (written at exactly this path)")
     parser.add_argument("--gltf", metavar="OUT.glb", help="the visible baked meshes and the camera as glTF binary")
     parser.add_argument("--profile", choices=list(PROFILES), default="web",
                         help="how the transfer is packed (--gltf): web (WebGL's attribute budget, beyond it a data "
@@ -29,16 +30,22 @@ def add_parser(commands):
 def run(args, in_blender: bool) -> int:
     if (args.npz is None) == (args.gltf is None):
         raise InputError("give one of --npz OUT.npz (with --object) or --gltf OUT.glb")
+    if args.gltf:
+        check_suffix(args.gltf, "--gltf", gltf.SUFFIXES)
+    elif args.object is None:
+        raise InputError("--npz needs --object NAME")
     open_file(args.file, required=True)
     if args.gltf:
+        check_outputs([("--gltf", args.gltf)])
         return _run_gltf(bpy.context.scene, args.gltf, args.profile)
-    if args.object is None:
-        raise InputError("--npz needs --object NAME")
     ob = bpy.data.objects.get(args.object)
     if ob is None or ob.type != "MESH":
         raise InputError(f"no mesh object named {args.object!r} in {args.file}")
     mesh = ob.data
-    if texel_maps.is_texel_bake(mesh):
+    texel_bake = texel_maps.is_texel_bake(mesh)
+    maps = texel_maps.exr_paths(mesh, _stem(args.npz)) if texel_bake else []
+    check_outputs([("--npz", args.npz), *(("--npz's map", path) for path in maps)])
+    if texel_bake:
         return _export_texels(ob, args.npz)
     transfer, meta = storage.read_transfer(mesh)
     corner_points = storage.corner_points_of(mesh)
@@ -53,10 +60,10 @@ def run(args, in_blender: bool) -> int:
         per_corner = {"corner_points": corner_points, "corner_vertices": corner_vertices}
     matrix = np.array(ob.matrix_world, dtype=np.float64)
     local = mesh_arrays.mesh_positions(mesh)[point_vertices]
-    np.savez(args.npz, positions=geometry.points_to_world(matrix, local),
-             normals=geometry.directions_to_world(matrix, normals), local_positions=local, matrix_world=matrix,
-             transfer=transfer.reshape(len(local), -1, transfer.shape[-1]), point_vertices=point_vertices,
-             metadata=np.array(json.dumps(meta)), **per_corner)
+    write_npz(args.npz, positions=geometry.points_to_world(matrix, local),
+              normals=geometry.directions_to_world(matrix, normals), local_positions=local, matrix_world=matrix,
+              transfer=transfer.reshape(len(local), -1, transfer.shape[-1]), point_vertices=point_vertices,
+              metadata=np.array(json.dumps(meta)), **per_corner)
     split = f" ({meta.get('split_vertices', 0)} split: {len(local)} points)" if corner_points is not None else ""
     print(f"prt: wrote {args.npz}: {len(mesh.vertices)} vertices{split}, order {meta['order']}, {meta['mode']}")
     return 0
@@ -83,16 +90,27 @@ def _packing(packed) -> str:
             f"{'attributes' if packed.texture is None else 'texels of a data texture'}")
 
 
+def _stem(npz: str) -> str:
+    """Where a texel bake's maps go: beside the .npz, named after it."""
+    return os.path.splitext(npz)[0]
+
+
+def write_npz(path: str, **arrays):
+    """The arrays as an .npz at exactly `path` (np.savez would add .npz to a name without it), whole or not at
+    all."""
+    with replacing(path) as temporary, open(temporary, "wb") as handle:
+        np.savez(handle, **arrays)
+
+
 def _export_texels(ob, npz: str) -> int:
     """A texel bake: its maps as 32-bit EXR files beside the .npz (`<stem>_t00.exr`, ..., `<stem>_error.exr`, laid
     out as stored), and the .npz with `transfer` (height × width × n², float32, gutters included), the UV map's
     name, `matrix_world` and `metadata`."""
     mesh = ob.data
     planes, meta = texel_maps.read_planes(mesh)
-    stem = os.path.splitext(npz)[0]
-    written = texel_maps.save_exr(mesh, stem)
-    np.savez(npz, transfer=planes.T.reshape(meta["height"], meta["width"], -1), uv_map=np.array(meta["uv_map"]),
-             matrix_world=np.array(ob.matrix_world, dtype=np.float64), metadata=np.array(json.dumps(meta)))
+    written = texel_maps.save_exr(mesh, _stem(npz))
+    write_npz(npz, transfer=planes.T.reshape(meta["height"], meta["width"], -1), uv_map=np.array(meta["uv_map"]),
+              matrix_world=np.array(ob.matrix_world, dtype=np.float64), metadata=np.array(json.dumps(meta)))
     print(f"prt: wrote {npz} and {len(written)} EXR maps ({', '.join(map(os.path.basename, written))}): "
           f"{meta['width']} × {meta['height']} texels in UV map {meta['uv_map']!r}, order {meta['order']}, "
           f"{meta['mode']}")

@@ -3,6 +3,7 @@ Cycles): the light's projection error and the predicted shading error per order 
 order recommended for a target, and the suns found in environment images; optionally a plot."""
 
 import math
+import os
 
 import bpy
 
@@ -10,9 +11,11 @@ from ..blender import lights
 from ..core import light_fidelity
 from ..core.errors import InputError
 from ..core.settings import ORDER_TARGET
-from .common import log, open_file, write_json
+from ..core.outputs import check_suffix, replacing
+from .common import check_outputs, log, open_file, write_json
 
 COMMAND = "light-report"
+PLOT_SUFFIXES = (".png", ".svg", ".pdf")  # the plot's format follows its suffix
 
 
 def add_parser(commands):
@@ -21,13 +24,17 @@ def add_parser(commands):
     parser.add_argument("file", nargs="?", help=".blend file with SH lights (in Blender: defaults to the open file)")
     parser.add_argument("--target", type=float, default=ORDER_TARGET.default,
                         help=f"predicted shading error the recommended order meets ({ORDER_TARGET.range_text()})")
-    parser.add_argument("--plot", help="write the two errors against the order as a PNG here (needs matplotlib, "
-                                       "which Blender does not bundle: use the bpy module)")
+    parser.add_argument("--plot", help="write the two errors against the order here, as .png, .svg or .pdf (needs "
+                                       "matplotlib, which Blender does not bundle: use the bpy module)")
     parser.add_argument("--report", help="write the figures as JSON here")
 
 
 def run(args, in_blender: bool) -> int:
+    if args.plot:
+        check_suffix(args.plot, "--plot", PLOT_SUFFIXES)
+        _pyplot()
     open_file(args.file, required=not in_blender)
+    check_outputs([("--report", args.report), ("--plot", args.plot)])
     if not ORDER_TARGET.contains(args.target):
         raise InputError(f"--target must be {ORDER_TARGET.range_text()}, not {args.target}")
     scene = bpy.context.evaluated_depsgraph_get().scene_eval
@@ -56,7 +63,8 @@ def run(args, in_blender: bool) -> int:
     return 0
 
 
-def plot(fidelity: light_fidelity.LightFidelity, path: str):
+def _pyplot():
+    """matplotlib's pyplot drawing off screen; refused, naming how to get it, where it is not installed."""
     try:
         import matplotlib
     except ImportError:
@@ -64,6 +72,11 @@ def plot(fidelity: light_fidelity.LightFidelity, path: str):
                          "light-report FILE --plot OUT.png` with the bpy module and matplotlib installed") from None
     matplotlib.use("Agg")
     from matplotlib import pyplot
+    return pyplot
+
+
+def plot(fidelity: light_fidelity.LightFidelity, path: str):
+    pyplot = _pyplot()
     orders = sorted(fidelity.predicted)
     figure, axes = pyplot.subplots(figsize=(6, 4))
     axes.plot(orders, [100 * fidelity.projection[n] for n in orders], "o-", label="light's projection (L2)")
@@ -75,5 +88,6 @@ def plot(fidelity: light_fidelity.LightFidelity, path: str):
     axes.set_yscale("log")
     axes.legend()
     figure.tight_layout()
-    figure.savefig(path, dpi=100)
+    with replacing(path) as temporary:
+        figure.savefig(temporary, dpi=100, format=os.path.splitext(path)[1][1:].lower())
     pyplot.close(figure)

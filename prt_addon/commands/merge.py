@@ -5,7 +5,8 @@ and nothing is written."""
 import bpy
 
 from ..blender.farm import merge_parts
-from .common import check_writable, log, open_file, save_bake, warn
+from ..core.shards import part_paths
+from .common import check_outputs, log, open_file, save_bake, saved_file, warn
 
 RELIGHTING = True  # the relighting handlers keep the saved file's PRT colours current with its SH lights
 
@@ -23,9 +24,8 @@ def run(args, in_blender: bool) -> int:
     has_file = args.inputs[0].lower().endswith(".blend")
     blend_file, parts = (args.inputs[0], args.inputs[1:]) if has_file else (None, args.inputs)
     open_file(blend_file, required=not in_blender)
-    for path in (args.output or bpy.data.filepath, args.report):
-        if path:
-            check_writable(path)
+    check_outputs([("--report", args.report)], [("the part file", path) for path in part_paths(parts)],
+                  saved=saved_file(args.output))
     scene_bake = merge_parts(bpy.context, parts, log=log)
     warn(scene_bake.problems + scene_bake.notes)
     log(scene_bake.summary.line())

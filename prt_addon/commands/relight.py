@@ -11,7 +11,9 @@ from ..blender.relighting import Relighter
 from ..blender.render import ENGINES, engine_id, render
 from ..core.errors import InputError
 from . import light_options
-from .common import whole_number
+from ..blender.outputs import IMAGE_FORMATS
+from ..core.outputs import check_suffix
+from .common import check_outputs, open_file, whole_number
 
 
 def add_parser(commands):
@@ -26,7 +28,8 @@ def add_parser(commands):
                         help="EEVEE: PRT colour × albedo texture; WORKBENCH: the PRT colour alone, faster")
     parser.add_argument("--samples", type=whole_number("--samples", 1), default=4, help="EEVEE render samples")
     parser.add_argument("--resolution", type=_resolution, metavar="WxH", help="default: the file's")
-    parser.add_argument("--render", required=True, metavar="OUT.png", help="where to write the image")
+    parser.add_argument("--render", required=True, metavar="OUT.png",
+                        help="where to write the image, as PNG or JPEG after its suffix (.png, .jpg)")
     light_options.add_arguments(parser)
 
 
@@ -43,7 +46,7 @@ def _resolution(text):
 def run(args, in_blender: bool) -> int:
     done = relight_file(args.file, args.render, args.light, args.light_theta, args.light_phi,
                         engine=args.engine, samples=args.samples, resolution=args.resolution,
-                        add_lights=lambda scene: light_options.add_lights(scene, args))
+                        add_lights=lambda scene: light_options.add_lights(scene, args), inputs=[("--env", args.env)])
     width, height = done["resolution"]
     print(f"prt: rendered {done['path']} with {done['engine']} at {width}×{height} in {done['render_s']:.1f} s "
           f"(relit in {1000 * done['relight_s']:.0f} ms)")
@@ -53,12 +56,13 @@ def run(args, in_blender: bool) -> int:
 
 
 def relight_file(path, render_path, light_index=None, theta_deg=None, phi_deg=None, engine="EEVEE", samples=4,
-                 resolution=None, add_lights=None) -> dict:
+                 resolution=None, add_lights=None, inputs=()) -> dict:
     """Opens `path`, adds SH lights (`add_lights(scene)`), aims one light (default: the active one), renders
-    `render_path`; returns what it did."""
-    if not os.path.isfile(path):
-        raise InputError(f"no such file: {path}")
-    bpy.ops.wm.open_mainfile(filepath=os.path.abspath(path), load_ui=False)
+    `render_path`, which is refused before any work where it would replace the file, a file it uses or one of the
+    other `inputs` ((what, path) pairs); returns what it did."""
+    check_suffix(render_path, "--render", list(IMAGE_FORMATS))
+    open_file(path, required=True)
+    check_outputs([("--render", render_path)], inputs)
     scene = bpy.context.scene
     if add_lights:
         add_lights(scene)

@@ -7,7 +7,9 @@ import bpy
 
 from ..blender.image_validation import DEFAULT_PASSES as IMAGE_PASSES, DEFAULT_RESOLUTION, validate_image
 from ..blender.validation import DEFAULT_PASSES, DEFAULT_SAMPLES, REFERENCES, Validation
-from .common import add_object_options, log, object_names, open_file, warn, write_json
+from ..blender.outputs import IMAGE_FORMATS
+from ..core.outputs import check_suffix
+from .common import add_object_options, check_outputs, log, object_names, open_file, warn, write_json
 
 RELIGHTING = True  # --image renders the PRT display, which the relighting handlers switch on and off
 
@@ -30,7 +32,7 @@ def add_parser(commands):
     parser.add_argument("--camera", help="--image: the camera to render from (default: the scene's)")
     parser.add_argument("--resolution", type=resolution, default=DEFAULT_RESOLUTION,
                         help="--image: WIDTHxHEIGHT of both renders (default 160x120)")
-    parser.add_argument("--heatmap", help="--image: write a PNG of each pixel's error here")
+    parser.add_argument("--heatmap", help="--image: write an image of each pixel's error here (.png, .jpg)")
 
 
 def resolution(text: str) -> tuple[int, int]:
@@ -44,7 +46,10 @@ def resolution(text: str) -> tuple[int, int]:
 
 
 def run(args, in_blender: bool) -> int:
+    if args.heatmap:
+        check_suffix(args.heatmap, "--heatmap", list(IMAGE_FORMATS))
     open_file(args.file, required=not in_blender)
+    check_outputs([("--report", args.report), ("--heatmap", args.heatmap)])
     if args.image:
         return _run_image(args)
     validation = Validation(bpy.context, args.samples, args.passes or DEFAULT_PASSES, object_names(args),

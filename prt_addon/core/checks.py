@@ -10,7 +10,7 @@ import time
 
 import numpy as np
 
-from . import bake, estimator, ray_caster
+from . import bake, estimator, outputs, ray_caster
 from .errors import InputError
 from .progress import format_duration
 
@@ -56,23 +56,12 @@ def stop_on_errors(checks):
 
 # -- paths --------------------------------------------------------------------------------------------------------
 def writable_check(path: str, subject: str, required: bool) -> Check:
-    """Whether a file can be saved at `path`: its folder exists and takes new files (Blender saves to a temporary
-    file beside the target, then renames it), and an existing file there is not read-only. A problem is an error
-    where saving is `required`, else a warning."""
-    path = os.path.abspath(path)
-    folder = os.path.dirname(path)
-    level = ERROR if required else WARNING
-    if not os.path.isdir(folder):
-        missing = folder
-        while not os.path.exists(os.path.dirname(missing)) and os.path.dirname(missing) != missing:
-            missing = os.path.dirname(missing)
-        what = "is not a folder" if os.path.exists(missing) else "does not exist"
-        return Check(level, subject, f"cannot save {path}: the folder {missing} {what}")
-    if not os.access(folder, os.W_OK | os.X_OK):
-        return Check(level, subject, f"cannot save {path}: no permission to write in {folder}")
-    if os.path.isdir(path) or os.path.exists(path) and not os.access(path, os.W_OK):
-        return Check(level, subject, f"cannot save {path}: it is a folder or read-only")
-    return Check(OK, subject, f"{path} can be written")
+    """Whether a file can be saved at `path`, by outputs.unwritable's rule (missing folders are created when
+    saving). A problem is an error where saving is `required`, else a warning."""
+    problem = outputs.unwritable(path)
+    if problem:
+        return Check(ERROR if required else WARNING, subject, problem)
+    return Check(OK, subject, f"{os.path.abspath(path)} can be written")
 
 
 def workers_check(processes: int, temporary_folder: str) -> Check:

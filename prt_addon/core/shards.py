@@ -16,12 +16,11 @@ from itertools import islice
 import json
 import os
 import time
-import uuid
 import zipfile
 
 import numpy as np
 
-from . import fingerprint, job_file
+from . import fingerprint, job_file, outputs
 from .errors import InputError
 
 # Also names how chunks are cut and what the description holds: 4 parts a split vertex's points about their mean
@@ -82,27 +81,18 @@ class Stopwatch:
 
 
 def write_part(path: str, info: PartInfo, chunk_results, probe_results, stopwatch: Stopwatch) -> None:
-    """Writes the part atomically (a temporary file in the same folder, renamed over `path`), creating the folder:
-    a farm that kills a shard midway, or retries it, never leaves half a part. The chunks' arrays go first and
-    the description last, so its seconds (info.time_s, cpu_s, read from `stopwatch`) include writing them. The
-    file gets the mode any new file gets (0666 less the umask), so a merge run as another user on shared storage
-    reads it."""
-    folder = os.path.dirname(os.path.abspath(path))
-    os.makedirs(folder, exist_ok=True)
-    temporary = os.path.join(folder, f".prt_part_{uuid.uuid4().hex}.partial")
-    handle = os.open(temporary, os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_BINARY", 0), 0o666)
-    try:
-        with os.fdopen(handle, "wb") as out, zipfile.ZipFile(out, "w") as archive:  # np.savez's layout
-            arrays = {**job_file.result_arrays(sorted(chunk_results.items())),
-                      **job_file.result_arrays(sorted(probe_results.items()), PROBES)}
-            for name, array in arrays.items():
-                _write_array(archive, name, array)
-            info.time_s, info.cpu_s = stopwatch.elapsed()
-            _write_array(archive, "part", np.array(json.dumps({"format": PART_FORMAT, **asdict(info)})))
-        os.replace(temporary, path)
-    except BaseException:
-        os.unlink(temporary)
-        raise
+    """Writes the part whole or not at all (outputs.replacing), creating the folder: a farm that kills a shard
+    midway, or retries it, never leaves half a part. The chunks' arrays go first and the description last, so its
+    seconds (info.time_s, cpu_s, read from `stopwatch`) include writing them. The file gets the mode any new file
+    gets (0666 less the umask), so a merge run as another user on shared storage reads it."""
+    with outputs.replacing(path) as temporary, open(temporary, "wb") as out, \
+            zipfile.ZipFile(out, "w") as archive:  # np.savez's layout
+        arrays = {**job_file.result_arrays(sorted(chunk_results.items())),
+                  **job_file.result_arrays(sorted(probe_results.items()), PROBES)}
+        for name, array in arrays.items():
+            _write_array(archive, name, array)
+        info.time_s, info.cpu_s = stopwatch.elapsed()
+        _write_array(archive, "part", np.array(json.dumps({"format": PART_FORMAT, **asdict(info)})))
 
 
 def _write_array(archive: zipfile.ZipFile, name: str, array: np.ndarray):
