@@ -182,6 +182,17 @@ def test_assets_smoke_run():
     number(found(r"^sphere flat baked with its smooth vertex normals instead, .*: RMS {n} %", out).group(1))
 
 
+def test_messy_assets_smoke_run():
+    out = run_benchmark("messy_assets", "--quick", "--cases", "boxes crossing")
+    match = found(r"^boxes crossing\s+\d+\s+\d+\s+\d+\s+{n}\s+{n}\s+{n}\s+{n}\s+{n}\s+{n}\s+(?:exact|{n})", out)
+    rms, p99 = (number(g, positive=False) for g in match.groups()[2:4])
+    assert found(r"^goal RMS ≤ 2 % against Cycles, every asset: (PASS|MISS)", out).group(1) == (
+        "PASS" if rms <= 2.0 else "MISS")
+    assert found(r"^goal p99 ≤ 10 % against Cycles, every asset: (PASS|MISS)", out).group(1) == (
+        "PASS" if p99 <= 10.0 else "MISS")
+    found(r"^Where each case differs", out)
+
+
 def test_corners_smoke_run(tmp_path):
     out = run_benchmark("corners", "--quick", "--asset", small_obj(tmp_path / "torus.obj"))
     goal_line(r"^   flat ÷ smooth at equal estimated error {n} \(median pair; fastest bakes [\d.]+\)   goal <= 1\.5", out,
