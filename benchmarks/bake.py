@@ -26,7 +26,7 @@ import bpy  # noqa: E402  (bpy before mathutils, which the core imports)
 import numpy as np  # noqa: E402
 
 from prt_addon.blender import sample_scenes  # noqa: E402
-from prt_addon.blender.scene_bake import SceneBake, worker_launch  # noqa: E402
+from prt_addon.blender.scene_bake import SceneBake, local_executor  # noqa: E402
 from prt_addon.commands.common import schema_registered  # noqa: E402
 from prt_addon.core import bake, estimator, job, lobes, ray_caster, scheduling, sh  # noqa: E402
 
@@ -160,7 +160,7 @@ def subset_receivers(receivers, picks):
 def bake_picks(receivers, occluders, picks, settings, workers=1):
     """Our estimator on the picked vertices only → (transfer, std_error, rel_error) in pick order."""
     subsets, rows = subset_receivers(receivers, picks)
-    results = job.TransferJob(subsets, occluders, settings, workers, worker_launch()).run()
+    results = job.TransferJob(subsets, occluders, settings, local_executor(workers)).run()
     stacked = [np.concatenate([getattr(r, name) for r in results])[rows]
                for name in ("transfer", "std_error", "rel_error")]
     return tuple(stacked)

@@ -105,8 +105,7 @@ def actual_error(scene_bake, settings, workers, sizes: Sizes):
         stored.append(planes[:, surface.layout.texels[rows]].T)
     reference_settings = bake.BakeSettings(order=settings.order, samples=sizes.reference_samples,
                                            seed=settings.seed + 1)
-    results = job.TransferJob(receivers, scene_bake.job.occluders, reference_settings, workers,
-                              scene_bake.job.worker_command).run()
+    results = job.TransferJob(receivers, scene_bake.job.occluders, reference_settings, scene_bake.executor).run()
     scale = lobes.unshadowed_norm(settings.order)
     difference = np.concatenate([np.linalg.norm(s - r.transfer, axis=1) for s, r in zip(stored, results)]) / scale
     noise = np.concatenate([r.rel_error for r in results])

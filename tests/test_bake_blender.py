@@ -164,7 +164,7 @@ def test_cancelled_bake_leaves_previous_data_exactly(empty_scene, workers):
     bake(order=3)
     before, meta_before = transfer_of(floor)
     scene_bake = SceneBake(bpy.context, BakeSettings(order=4, samples=4096), ["Floor"], workers=workers)
-    scene_bake.job.min_rays_for_workers, scene_bake.job.worker_start_s = 0, 0.0
+    scene_bake.executor.min_rays, scene_bake.executor.start_s = 0, 0.0
     assert not scene_bake.step(0.05)  # part of the work, as the modal operator does per timer event
     scene_bake.cancel()
     after, meta_after = transfer_of(floor)

@@ -1,5 +1,6 @@
 """The shadowed estimator against closed forms, its error estimate against its actual error."""
 
+import functools
 import itertools
 import os
 from pathlib import Path
@@ -12,7 +13,7 @@ from numpy.polynomial import legendre
 
 from quadrature import polygon_transfer
 
-from prt_addon.core import bake, estimator, job, lobes, polygons, ray_caster, scheduling, sh, workers
+from prt_addon.core import bake, estimator, executors, job, lobes, polygons, ray_caster, scheduling, sh, workers
 
 ENGINE = "reference"  # the estimator's tests need no Blender
 # Segments of the disc in tests that compare bakes with each other, not with the disc's closed form: the reference
@@ -178,17 +179,22 @@ def test_target_error_is_met_per_vertex():
     assert result.rays.max() > result.rays.min()  # rays went where the error was
 
 
+SPAWNED = functools.partial(executors.SpawnedWorkers, 2, [sys.executable, "-c"])
+FORKED = functools.partial(executors.ForkedWorkers, 2)
+
+
 def bake_alone_and_with_a_worker(launch, owners=None):
-    """The same 600 vertices (5 chunks) baked by this process alone, then with one worker started by `launch`."""
+    """The same 600 vertices (5 chunks) baked by this process alone, then with one worker: `launch(owners)` makes
+    the executor (SPAWNED or FORKED)."""
     rng = np.random.default_rng(5)
     positions = np.column_stack([rng.uniform(-1.5, 1.5, (600, 2)), np.zeros(600)])
     receiver = bake.Receiver("w", positions, np.tile([0.0, 0.0, 1.0], (600, 1)), 21)
     settings = bake.BakeSettings(order=4, samples=64, target_error=0.05, max_samples=1024)
-    one = job.TransferJob([receiver], disc(1.0, 1.0, COARSE_DISC), settings, workers=1).run()[0]
-    two_workers = job.TransferJob([receiver], disc(1.0, 1.0, COARSE_DISC), settings, workers=2, worker_command=launch,
-                                  owners=owners)
-    two_workers.min_rays_for_workers = 0  # a job this small would otherwise stay in one process
-    two_workers.worker_start_s = 0.0      # and a spawned worker's share is not cut for its start-up
+    one = job.TransferJob([receiver], disc(1.0, 1.0, COARSE_DISC), settings).run()[0]
+    executor = launch(owners=owners)
+    executor.min_rays = 0  # a job this small would otherwise stay in one process
+    executor.start_s = 0.0  # and a spawned worker's share is not cut for its start-up
+    two_workers = job.TransferJob([receiver], disc(1.0, 1.0, COARSE_DISC), settings, executor)
     return one, two_workers
 
 
@@ -199,8 +205,8 @@ def assert_bit_identical(one, two):
 
 
 @pytest.mark.parametrize("launch, owners, starts_here", [
-    ([sys.executable, "-c"], None, [0, 256, 512]),  # chunk_owners' split: interleaved when workers start at once
-    (workers.FORK, [1, 0, 1, 1, 0], [128, 512]),    # a fixed split instead of the shared queue
+    (SPAWNED, None, [0, 256, 512]),           # chunk_owners' split: interleaved when workers start at once
+    (FORKED, [1, 0, 1, 1, 0], [128, 512]),    # a fixed split instead of the shared queue
 ], ids=["spawned", "forked"])
 def test_workers_give_bit_identical_results(launch, owners, starts_here, chunks_baked_here):
     one, two_workers = bake_alone_and_with_a_worker(launch, owners)
@@ -213,7 +219,7 @@ def test_workers_give_bit_identical_results(launch, owners, starts_here, chunks_
 
 def test_forked_workers_taking_chunks_from_the_shared_queue_give_bit_identical_results(chunks_baked_here):
     """Who takes which chunk depends on the machine's load; the results and the count of vertices do not."""
-    one, two_workers = bake_alone_and_with_a_worker(workers.FORK)
+    one, two_workers = bake_alone_and_with_a_worker(FORKED)
     chunks_baked_here.clear()
     two = two_workers.run()[0]
     assert_bit_identical(one, two)

@@ -142,10 +142,11 @@ def test_a_shard_with_forked_workers_bakes_the_same_chunks_and_bits_as_with_one_
     bpy.ops.wm.open_mainfile(filepath=str(scenes["room"]), load_ui=False)
     baked_shards = []
     for workers in (1, 2):
-        scene_bake = SceneBake(bpy.context, BakeSettings(order=3, samples=16), workers=workers, shard=(1, 2))
-        scene_bake.job.min_rays_for_workers = 0  # workers even for this small scene
+        scene_bake = SceneBake(bpy.context, BakeSettings(order=3, samples=16), workers=workers, farm=True)
+        scene_bake.executor.min_rays = 0  # workers even for this small scene
+        scene_bake.bake_only((1, 2))
         scene_bake.job.run()
-        baked_shards.append(scene_bake.job.shard_results)
+        baked_shards.append(scene_bake.executor.kept["bake"])
     one, forked = baked_shards
     assert sorted(one) == sorted(forked) == shard_chunks(len(scene_bake.job.chunks), 1, 2)
     for index, result in one.items():

@@ -1,11 +1,12 @@
 """Interreflections gathered over the shadow pass's hits: the stiff closed box and colour bleeding."""
 
+import functools
 import sys
 
 import numpy as np
 import pytest
 
-from prt_addon.core import bake, interreflect, job, lobes, scheduling, workers
+from prt_addon.core import bake, executors, interreflect, job, lobes, scheduling
 
 ENGINE = "reference"  # the estimator's tests need no Blender
 
@@ -155,7 +156,8 @@ def records_in_chunk_order(the_job):
     return [getattr(records, name)[order] for name in interreflect.HitRecords.FIELDS]
 
 
-@pytest.mark.parametrize("launch", [[sys.executable, "-c"], workers.FORK], ids=["spawned", "forked"])
+@pytest.mark.parametrize("launch", [functools.partial(executors.SpawnedWorkers, 2, [sys.executable, "-c"]),
+                                    functools.partial(executors.ForkedWorkers, 2)], ids=["spawned", "forked"])
 def test_workers_bring_back_the_hit_records_bit_identically(launch, chunks_baked_here):
     """The bounces gather over every chunk's hit records, so the records must come back from the workers whole."""
     vertices, triangles, normals = closed_box(cuts=8)  # 386 vertices: 4 chunks
@@ -163,9 +165,10 @@ def test_workers_bring_back_the_hit_records_bit_identically(launch, chunks_baked
     albedo = np.full((len(vertices), 1), 0.7)
     one_process, (one,) = interreflected_job(vertices, triangles, normals, albedo, order=3, samples=64, bounces=2)
     occluders = bake.Occluders(vertices, triangles, vertices.copy(), solved_vertices=len(vertices), engine=ENGINE)
-    two_workers = job.TransferJob([bake.Receiver("box", vertices, normals, 9)], occluders, settings, workers=2,
-                                  worker_command=launch, albedo=[albedo], owners=[1, 0, 1, 0])
-    two_workers.min_rays_for_workers = 0  # a job this small would otherwise stay in one process
+    executor = launch(owners=[1, 0, 1, 0])
+    executor.min_rays = 0  # a job this small would otherwise stay in one process
+    two_workers = job.TransferJob([bake.Receiver("box", vertices, normals, 9)], occluders, settings, executor,
+                                  albedo=[albedo])
     chunks_baked_here.clear()
     (two,) = two_workers.run()
     assert chunks_baked_here == [128, 384]  # this process baked chunks 1 and 3, the worker 0 and 2

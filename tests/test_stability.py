@@ -9,7 +9,7 @@ import pytest
 
 from prt_addon.blender import storage
 from prt_addon.blender.scene_bake import SceneBake
-from prt_addon.core import estimator, lobes, sh, workers
+from prt_addon.core import estimator, executors, lobes, sh
 from prt_addon.core.bake import BakeSettings
 from prt_addon.core.errors import StaleBake
 from quadrature import sphere_quadrature
@@ -164,14 +164,16 @@ def test_object_transforms_scale_and_offset_do_not_change_the_bake(empty_scene, 
 
 
 def spawned_worker_out_of_memory(scene_bake, monkeypatch):
-    scene_bake.job.worker_command = [sys.executable, "-c", "import sys; sys.exit('worker ran out of memory')"]
-    scene_bake.job.worker_start_s = 0.0
+    scene_bake.executor = executors.SpawnedWorkers(2, [sys.executable, "-c",
+                                                       "import sys; sys.exit('worker ran out of memory')"])
+    scene_bake.executor.min_rays, scene_bake.executor.start_s = 0, 0.0
+    scene_bake.job.run_by(scene_bake.executor)
     return "worker ran out of memory"
 
 
 def forked_worker_out_of_memory_on_its_third_chunk(scene_bake, monkeypatch):
-    assert scene_bake.job.worker_command == workers.FORK
-    scene_bake.job.owners = [1] * len(scene_bake.job.chunks)  # the worker bakes every chunk: it reaches a third
+    assert isinstance(scene_bake.executor, executors.ForkedWorkers)
+    scene_bake.executor.owners = [1] * len(scene_bake.job.chunks)  # the worker bakes every chunk: it reaches a third
     baking_process, real_bake_chunk, chunks_baked = os.getpid(), estimator.bake_chunk, []
 
     def failing_in_the_worker(*args):
@@ -193,7 +195,7 @@ def test_a_worker_failing_halfway_is_reported_and_keeps_the_previous_data(empty_
     bake_objects(["Floor"], order=3)
     before, meta_before = transfer_of(floor)
     scene_bake = SceneBake(bpy.context, BakeSettings(order=4, samples=64), ["Floor"], workers=2)
-    scene_bake.job.min_rays_for_workers = 0
+    scene_bake.executor.min_rays = 0
     message = make_a_worker_fail(scene_bake, monkeypatch)
     with pytest.raises(RuntimeError, match=message):
         scene_bake.run(log=lambda line: None)

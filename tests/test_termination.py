@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from conftest import start_cli, wait_until
-from prt_addon.core import bake, job, workers
+from prt_addon.core import bake, executors, job
 
 TERMINATED_LINE = "prt: error: terminated (SIGTERM); nothing was written"
 SAMPLES = "16384"  # suzanne at this many rays a vertex bakes for tens of seconds: still baking when signalled
@@ -20,7 +20,8 @@ SAMPLES = "16384"  # suzanne at this many rays a vertex bakes for tens of second
 SPAWNING = ("import sys\n"
             "import bpy\n"
             "from prt_addon.blender import scene_bake\n"
-            "scene_bake.worker_launch = lambda: [sys.executable, '-c']\n"
+            "from prt_addon.core import executors\n"
+            "scene_bake.local_executor = lambda workers: executors.SpawnedWorkers(workers, [sys.executable, '-c'])\n"
             "from prt_addon.commands.cli import main\n"
             "sys.exit(main(sys.argv[1:]))\n")
 
@@ -139,7 +140,7 @@ def test_a_job_stopped_between_its_steps_ends_its_workers_and_removes_its_folder
     receiver = bake.Receiver("w", positions, np.tile([0.0, 0.0, 1.0], (600, 1)), 21)
     occluder = np.array([[-2.0, -2.0, 1.0], [2.0, -2.0, 1.0], [0.0, 2.0, 1.0]])
     stopped = job.TransferJob([receiver], bake.Occluders(occluder, np.array([[0, 1, 2]]), occluder.copy()),
-                              bake.BakeSettings(order=4, samples=4096), workers=2, worker_command=workers.FORK)
+                              bake.BakeSettings(order=4, samples=4096), executors.ForkedWorkers(2))
     before = set(children(os.getpid()))
 
     def interrupted(line):

@@ -10,7 +10,6 @@ import numpy as np
 
 from ..core import checks
 from ..core.checks import ERROR, INFO, WARNING, Check
-from ..core.workers import FORK, WORKER_START_S
 from . import geometry
 
 
@@ -33,11 +32,11 @@ def scene_checks(context, scene_bake) -> list[Check]:
     """Workers, memory, time, then each object's problems, then what the gathering found (objects not baked,
     notes). `scene_bake` has gathered everything and cast no ray."""
     job, settings = scene_bake.job, scene_bake.settings
-    processes = job.workers if job.uses_workers() else 1
-    spawned = processes > 1 and job.worker_command != FORK
+    processes = job.processes()
+    spawned = processes > 1 and job.executor.spawned
     parallel = min(processes, os.cpu_count() or 1)
     sample = checks.timed_sample(job.receivers, job.occluders, settings)
-    seconds = checks.estimated_seconds(sample, job.total_vertices, parallel, WORKER_START_S if spawned else 0.0)
+    seconds = checks.estimated_seconds(sample, job.total_vertices, parallel, job.executor.start_s if spawned else 0.0)
     found = [checks.workers_check(processes, tempfile.gettempdir()),
              checks.memory_check(bake_size(scene_bake, sample, processes, spawned), checks.available_memory()),
              checks.time_check(sample, seconds, settings, parallel)]

@@ -6,7 +6,7 @@ import os
 
 import bpy
 
-from ..core import part_file, shards
+from ..core import executors, part_file, shards
 from ..core.bake import BakeSettings
 from ..core.errors import InputError
 from .scene_bake import SceneBake
@@ -16,7 +16,7 @@ def bake_shard(context, settings: BakeSettings, names, shard, out: str, stopwatc
                workers: int = 1, log=None) -> shards.PartInfo:
     """Bakes shard (K, N) of the scene's bake and writes its part file, its seconds read from `stopwatch` (started
     with the command); nothing in the scene changes."""
-    scene_bake = SceneBake(context, settings, names, workers=workers, shard=shard)
+    scene_bake = SceneBake(context, settings, names, workers=workers, farm=True)
     return bake_share(scene_bake, shard, out, stopwatch, log)
 
 
@@ -24,7 +24,7 @@ def bake_share(scene_bake: SceneBake, shard, out: str, stopwatch: shards.Stopwat
     """Bakes shard (K, N) of a gathered farm bake and writes its part file, its seconds read from `stopwatch`."""
     scene_bake.bake_only(shard)
     scene_bake.sequence.run(log=log)  # its vertices' chunks and its probes'
-    results, probe_results = scene_bake.job.shard_results, scene_bake.probe_job.shard_results
+    results, probe_results = (scene_bake.executor.kept.get(name, {}) for name in ("bake", "probes"))
     info = part_info(scene_bake, shard)
     info.rays = int(sum(int(result.rays.sum()) for result in [*results.values(), *probe_results.values()]))
     info.rays_s, info.workers = scene_bake.levels.progress.elapsed, scene_bake.job.workers
@@ -47,12 +47,13 @@ def merge_parts(context, paths, log=None, scene_bake: SceneBake | None = None) -
     if problems:
         raise InputError("cannot merge: " + "; ".join(problems) + "; nothing was written")
     shape = part_file.PartShape.of(scene_bake.job, scene_bake.probe_job)
-    loaded = [part_file.load_part(path, info, shape) for path, info in parts]
+    loaded = dict(zip(("bake", "probes"), zip(*[part_file.load_part(path, info, shape) for path, info in parts])))
     infos = [info for _, info in parts]
-    scene_bake.job.take_parts((result for chunks, _ in loaded for result in chunks),
-                              sum(info.time_s for info in infos), sum(info.rays_s for info in infos),
-                              sum(info.workers for info in infos))
-    scene_bake.probe_job.take_parts(result for _, probes in loaded for result in probes)
+    from_parts = executors.FromParts(lambda name: (result for chunks in loaded[name] for result in chunks),
+                                     sum(info.time_s for info in infos), sum(info.rays_s for info in infos),
+                                     sum(info.workers for info in infos))
+    scene_bake.job.run_by(from_parts)
+    scene_bake.probe_job.run_by(from_parts)
     scene_bake.run(log=log)
     return scene_bake
 

@@ -9,7 +9,7 @@ import sys
 import bpy
 import numpy as np
 
-from ..core import bake, corners, interpolation, job, lobes, settings as spec, subsurface, workers
+from ..core import bake, corners, executors, interpolation, job, lobes, settings as spec, subsurface
 from ..core.errors import InputError
 from ..core.progress import JobSequence, WrappingJob, old_objects_frozen
 from . import fingerprint, geometry, materials, storage, texel_bake
@@ -25,15 +25,19 @@ def _vertex_count(surface) -> int:
     return len(corners.unique_rows(surface.vertex_positions)[0])
 
 
-def worker_launch():
-    """How to start a worker: Blender's own binary in a real Blender. With the bpy module, a fork of this process
-    on Linux (it starts in milliseconds instead of importing bpy for a second, and shares the ray tree); the
-    module's Python elsewhere (macOS and Windows cannot fork a process that runs Blender safely)."""
+def local_executor(workers: int):
+    """How `workers` processes bake on this machine (core.executors): this process alone for one; else workers
+    running Blender's own binary in a real Blender; with the bpy module, forks of this process on Linux (they start
+    in milliseconds instead of importing bpy for a second, and share the ray tree), the module's Python elsewhere
+    (macOS and Windows cannot fork a process that runs Blender safely)."""
+    if workers <= 1:
+        return executors.InProcess()
     if bpy.app.binary_path:
-        return [bpy.app.binary_path, "--background", "--factory-startup", "--python-expr"]
+        return executors.SpawnedWorkers(workers, [bpy.app.binary_path, "--background", "--factory-startup",
+                                                  "--python-expr"])
     if sys.platform.startswith("linux"):
-        return workers.FORK
-    return [sys.executable, "-c"]
+        return executors.ForkedWorkers(workers)
+    return executors.SpawnedWorkers(workers, [sys.executable, "-c"])
 
 
 def with_subsurface(surface, transfer, weight, mean_free_path, albedo, ior):
@@ -90,10 +94,10 @@ class SceneBake(WrappingJob):
 
     @old_objects_frozen()  # gathering makes many lists for Blender and numpy, as a job's steps do
     def __init__(self, context, settings: bake.BakeSettings, object_names=None, workers: int = 1,
-                 storage_options=None, shard=None, farm: bool = False):
+                 storage_options=None, farm: bool = False):
         """storage_options: texel_bake.TexelOptions fields that override every receiver's own (the command
-        line's). `shard` (K, N): the job bakes only farm shard K's chunks, for a part file (blender.farm); `farm`: the
-        merge of such parts. A farm bake stores every receiver per vertex."""
+        line's). `farm`: a bake whose chunks farm shards bake (bake_only) and a merge stores (blender.farm); it
+        stores every receiver per vertex."""
         problems = settings.problems()
         if problems:
             raise InputError("; ".join(problems))
@@ -118,7 +122,7 @@ class SceneBake(WrappingJob):
                 self.problems.append(str(problem))
         if not receivers:
             raise InputError("nothing to bake: " + ("; ".join(self.problems) or "no mesh objects"))
-        if farm or shard is not None:  # before the occluders are gathered
+        if farm:  # before the occluders are gathered
             texel_bake.refuse_on_farm(self.objects, storage_options or {})
         # Taken now, from the scene as it is baked: objects may move while a modal bake runs.
         self.fingerprints = fingerprint.fingerprints(depsgraph, self.objects, settings, storage_options)
@@ -143,20 +147,20 @@ class SceneBake(WrappingJob):
         self.notes += planned.decisions
         solved = self.surfaces.all
         albedo = _albedo_channels([s.albedo for s in solved]) if bouncing else None
-        count = spec.worker_count(workers)
+        self.executor = local_executor(spec.worker_count(workers))
 
         def transfer_job(receivers, gather_only=False):
-            return job.TransferJob(receivers, occluders, settings, count, worker_launch(), albedo=albedo,
-                                   shard=shard, gather_only=gather_only)
+            return job.TransferJob(receivers, occluders, settings, self.executor,
+                                   albedo=None if gather_only else albedo)
         # Texel receivers are baked lattice by lattice, coarse to fine; the first job is the one the checks size.
         self.levels = texel_bake.refining_job(solved, settings, transfer_job)
         self.job = self.levels.first
-        self.probes, self.probe_job = self._probe_job(occluders, count, shard)
+        self.probes, self.probe_job = self._probe_job(occluders)
         self.sequence = JobSequence([self.levels, self.probe_job],
                                     [self.job.total_vertices, max(1, self.probe_job.total_vertices)], "PRT bake")
         self.summary = None
 
-    def _probe_job(self, occluders, workers, shard):
+    def _probe_job(self, occluders):
         """Points inside the receivers' faces, baked after them to measure what storage per vertex loses between
         vertices (core.interpolation); an interreflected bake's probes measure its direct transfer. Not for texel
         receivers (their estimate holds what interpolating between texels may miss: core.texel_refine), nor for
@@ -172,13 +176,14 @@ class SceneBake(WrappingJob):
         receivers = [bake.Receiver(name, found.positions, found.normals, bake.Receiver.key_for(name + " probes"))
                      for name, found in probes.items()]
         settings = replace(self.settings, mode="shadowed") if self.settings.mode == "interreflected" else self.settings
-        return probes, job.TransferJob(receivers, occluders, settings, workers, worker_launch(), shard=shard)
+        return probes, job.TransferJob(receivers, occluders, settings, self.executor, name="probes")
 
     def bake_only(self, shard):
         """Bakes only farm shard (K, N)'s chunks of the vertices and of the probes: a farm bake's (`farm`) whole
         scene, gathered once, is shared so between forked shards (commands.farm_dask)."""
-        self.job.bake_only(shard)
-        self.probe_job.bake_only(shard)
+        self.executor = executors.FarmShard(shard, self.executor)
+        self.job.run_by(self.executor)
+        self.probe_job.run_by(self.executor)
 
     def build_ray_tree(self):
         """Builds the occluders' ray tree now (the jobs keep it), so that shards forked afterwards share it."""

@@ -1,25 +1,19 @@
-"""The bake job: the state machine that bakes every receiver's chunks in this process or with worker processes
-(see workers), with progress, time left and cancel, and the results it hands back (per receiver, and a summary).
+"""The bake job: the state machine that bakes every receiver's chunks through an executor (core.executors), with
+progress, time left and cancel, bounces interreflections, and hands back the results (per receiver, and a summary).
 
-Both ways run `estimator.bake_chunk` on the same fixed chunks, so the results are bit-identical whatever the
-number of workers. `step()` returns after a bounded amount of work so a modal operator stays responsive.
+Every executor runs `estimator.bake_chunk` on the same fixed chunks, so the results are bit-identical however the job is
+run. `step()` returns after a bounded amount of work so a modal operator stays responsive.
 """
 
 from dataclasses import dataclass, field
-import functools
-import os
-import queue
-import tempfile
-import threading
 import time
 
 import numpy as np
 
-from . import bake, estimator, interreflect, job_file, lobes, scheduling
+from . import bake, interreflect, lobes, scheduling
+from .executors import InProcess
 from .progress import Job, Progress
 from .statistics import rms
-from .workers import (FORK, FORK_MIN_RAYS, TYPICAL_RAYS_PER_S, WORKER_MIN_RAYS, WORKER_START_S, ChunkQueue,
-                      ForkedWorker, SpawnedWorker, chunk_owners, chunks_of, read_lines, shard_chunks)
 
 
 @dataclass
@@ -80,32 +74,26 @@ class Summary:
 
 
 class TransferJob(Job):
-    """Bakes every receiver. Call step() until it returns True, or run() to do it all at once."""
+    """Bakes every receiver through an executor (core.executors: in this process, with workers, a farm shard's
+    share, or from farm parts). Call step() until it returns True, or run() to do it all at once."""
 
-    def __init__(self, receivers, occluders, settings: bake.BakeSettings, workers: int = 1,
-                 worker_command=None, albedo=None, owners=None, shard=None, gather_only: bool = False):
-        """Interreflected bakes need `albedo`, one (V, C) array per receiver, and occluders whose first
-        `solved_vertices` are the receivers' vertices in order (so a hit triangle's corners are solved vertices).
-        `owners` fixes which process bakes each chunk when workers run (0: this one, k: worker k); by default
-        spawned workers get chunk_owners' split and forked ones share a queue with this process.
-        `shard` (K, N) bakes only farm shard K's chunks (workers.shard_chunks) and keeps their results for its part
-        file (shard_results); interreflections are bounced where the parts are merged (take_parts).
-        gather_only: an interreflected job whose receivers are not the solved surfaces (texels): it records its
-        rays' hits (`records`) for a gather from a solution made elsewhere, and bounces nothing itself."""
+    def __init__(self, receivers, occluders, settings: bake.BakeSettings, executor=None, albedo=None,
+                 name: str = "bake"):
+        """With `albedo`, one (V, C) array per receiver, the job bounces interreflections once it has every chunk's
+        result; its occluders' first `solved_vertices` must then be the receivers' vertices in order (so a hit
+        triangle's corners are solved vertices). Without, an interreflected job only records its rays' hits
+        (`records`), for a gather from a solution made elsewhere (core.texel_gather). `name` tells the bake's jobs
+        apart where their chunks are kept or read by name (farm parts)."""
         self.receivers = receivers
         self.occluders = occluders
         self.settings = settings
-        self.workers = max(1, int(workers))
-        self.worker_command = worker_command  # a command prefix (see job_file.worker_process_command) or FORK
-        self.min_rays_for_workers = FORK_MIN_RAYS if worker_command == FORK else WORKER_MIN_RAYS
-        self.worker_start_s = WORKER_START_S  # spawned workers: this process takes the share they start late
-        self.owners = owners
+        self.executor = executor or InProcess()
+        self.name = name
         self.chunks = scheduling.chunk_rows(receivers)
-        self.bake_only(shard)
+        self.run_by(self.executor)
         self.total_vertices = sum(len(r.positions) for r in receivers)
         self._vertex_offsets = np.cumsum([0] + [len(r.positions) for r in receivers])
-        self.gather_only = gather_only
-        if settings.mode == "interreflected" and not gather_only and occluders.solved_vertices != self.total_vertices:
+        if albedo is not None and occluders.solved_vertices != self.total_vertices:
             raise ValueError(f"interreflection needs occluders that begin with the {self.total_vertices} solved "
                              f"vertices, not {occluders.solved_vertices}")
         self.done_vertices = 0
@@ -122,18 +110,23 @@ class TransferJob(Job):
         self.bounce_report = None
         self.direct = None  # interreflected: each receiver's transfer before the bounces, once they have run
         self.phase_times = {}
-        self.shards_workers = 0  # a merge of farm shards: the processes their bakes asked for (take_parts)
+        self.shards_workers = 0  # a merge of farm shards: the processes their bakes asked for (FromParts)
         self._runner = None
         self.finished = False
 
-    def bake_only(self, shard):
-        """Bakes only farm shard (K, N)'s chunks (workers.shard_chunks), keeping their results for its part file
-        (shard_results), or every chunk for None. Called before the first step: a forked child of a process that
-        gathered the whole bake takes its shard so."""
-        self.shard = shard
-        self.baked_chunks = range(len(self.chunks)) if shard is None else shard_chunks(len(self.chunks), *shard)
-        self.shard_results = None if shard is None else {}
+    def run_by(self, executor):
+        """Before the first step: the executor that bakes the job (its share of the chunks)."""
+        self.executor = executor
+        self.baked_chunks = executor.share(len(self.chunks))
         self.baked_vertices = sum(len(self.chunks[index][1]) for index in self.baked_chunks)
+
+    @property
+    def workers(self) -> int:
+        return self.executor.workers
+
+    def processes(self) -> int:
+        """How many processes bake this job's chunks."""
+        return self.executor.processes(len(self.baked_chunks), self.baked_vertices, self.settings)
 
     # -- running --------------------------------------------------------------------------------------
     def step(self, budget_s: float = 0.1) -> bool:
@@ -141,22 +134,17 @@ class TransferJob(Job):
         if self.finished:
             return True
         if self._runner is None:
-            self._runner = self._run_workers() if self.uses_workers() else self._run_here()
+            self._runner = self.executor.run(self, self.baked_chunks, self._store)
         deadline = time.perf_counter() + budget_s
         while time.perf_counter() < deadline:
             if next(self._runner, StopIteration) is StopIteration:
                 self.phase_times["rays_s"] = self.progress.elapsed
-                if self.settings.mode == "interreflected" and self.shard is None and not self.gather_only:
+                if self.albedo is not None and self.executor.whole:
                     self._bounce()
                 self.finished = True
                 break
         self.progress.fraction = self.done_vertices / max(1, self.baked_vertices)
         return self.finished
-
-    def uses_workers(self) -> bool:
-        """Whether worker processes bake beside this one: only for enough rays to repay starting them."""
-        return (self.workers > 1 and self.settings.mode != "unshadowed" and len(self.baked_chunks) >= self.workers
-                and self.baked_vertices * self.settings.samples >= self.min_rays_for_workers)
 
     def outcome(self) -> list:
         return self.results()
@@ -172,134 +160,10 @@ class TransferJob(Job):
         self._std_error[receiver_index][rows] = result.std_error
         self._rays[receiver_index][rows] = result.rays
         self._skipped[receiver_index][rows] = result.skipped
-        if self.shard_results is not None:
-            self.shard_results[chunk_index] = result
         if result.records is not None:
             solved = self._vertex_offsets[receiver_index] + rows[result.records.vertex]
             self.records.append(interreflect.HitRecords(solved, result.records.triangle, result.records.barycentric,
                                                          result.records.weight, result.records.replicate))
-
-    def _run_here(self):
-        caster = self.occluders.ray_caster() if self.settings.mode != "unshadowed" else None
-        yield
-        for chunk_index in self.baked_chunks:
-            yield from self._bake_chunk_here(caster, chunk_index)
-
-    def take_parts(self, chunk_results, shards_time_s: float = 0.0, shards_rays_s: float = 0.0,
-                   shards_workers: int = 0):
-        """Merges farm shards: every chunk's result comes from their parts instead of being baked here; step() then
-        bounces interreflections as after a bake. Their bake commands took `shards_time_s` in all, their bakes
-        `shards_rays_s` (the span a one-process bake's rays per second are over), with `shards_workers` processes
-        in all: the summary's rays per second and workers are theirs."""
-        self.phase_times["shards_s"] = shards_time_s
-        self.phase_times["shards_rays_s"] = shards_rays_s
-        self.shards_workers = shards_workers
-        self._runner = self._store_parts(chunk_results)
-
-    def _store_parts(self, chunk_results):
-        for chunk_index, result in chunk_results:
-            self._store(chunk_index, result)
-            self.done_vertices += len(self.chunks[chunk_index][1])
-            self.rays += int(result.rays.sum())
-            yield
-
-    def _bake_chunk_here(self, caster, chunk_index):
-        receiver_index, rows = self.chunks[chunk_index]
-        work = estimator.bake_chunk(caster, self.receivers[receiver_index], rows, self.settings)
-        while True:
-            try:
-                self.rays += next(work)
-                yield
-            except StopIteration as finished:
-                self._store(chunk_index, finished.value)
-                self.done_vertices += len(rows)
-                return
-
-    def _run_workers(self):
-        """This process and N-1 worker processes bake the chunks. Spawned workers get fixed shares (they start a
-        second late); forked workers and this process take the next chunk from a shared queue whenever they are
-        free, so all finish together however the machine's load falls on them. Given `owners`, every process
-        bakes the chunks it owns."""
-        with tempfile.TemporaryDirectory(prefix="prt_bake_") as folder:
-            forking = self.worker_command == FORK
-            caster = self.occluders.ray_caster() if forking else None  # built before forking: shared
-            if not forking:
-                saved_job = os.path.join(folder, "job.npz")
-                job_file.save_job(saved_job, self.receivers, self.occluders, self.settings)
-            owners = self._chunk_owners(forking)
-            shared_queue = ChunkQueue(self.baked_chunks) if owners is None else None
-            mine = shared_queue if owners is None else chunks_of(owners, 0)
-            workers, lines = [], queue.Queue()
-            try:
-                for worker in range(1, self.workers):
-                    out_file = os.path.join(folder, f"result_{worker}.npz")
-                    theirs = shared_queue if owners is None else chunks_of(owners, worker)
-                    if owners is not None and not theirs:
-                        continue  # a worker with no chunks is not worth starting
-                    if forking:
-                        started = ForkedWorker(functools.partial(
-                            job_file.bake_chunks, caster, self.receivers, self.settings, theirs, out_file),
-                            out_file + ".failed", shared_queue)
-                    else:
-                        started = SpawnedWorker(job_file.worker_process_command(self.worker_command, saved_job,
-                                                                                out_file, theirs), folder)
-                    workers.append((started, out_file))
-                # Reader threads start after the last fork: a child has none of our threads, and a lock one of them
-                # held at the fork would stay locked in the child forever
-                for started, _ in workers:
-                    threading.Thread(target=read_lines, args=(started.stdout, lines), daemon=True).start()
-                if shared_queue is not None:
-                    shared_queue.fill()
-                caster = self.occluders.ray_caster()  # spawned workers start meanwhile
-                running = len(workers)
-                for chunk_index in mine:
-                    yield from self._bake_chunk_here(caster, chunk_index)
-                    running -= self._take_progress(lines, wait=0.0)
-                while running:
-                    running -= self._take_progress(lines, wait=0.05)
-                    yield
-                for started, out_file in workers:
-                    failure = started.finish()
-                    if failure is not None:
-                        raise RuntimeError("bake worker failed: " + failure)
-                    for chunk_index, result in job_file.load_results(out_file):
-                        self._store(chunk_index, result)
-            finally:
-                for started, _ in workers:
-                    started.kill()
-                if shared_queue is not None:
-                    shared_queue.close()
-
-    def _chunk_owners(self, forking: bool) -> list[int] | None:
-        """Which process bakes each chunk: `owners` if given, else chunk_owners' split for spawned workers, or
-        None when forked workers share a queue with this process."""
-        if self.owners is not None or forking:
-            return self.owners
-        split = chunk_owners(len(self.baked_chunks), self.workers, self._estimated_seconds(), self.worker_start_s)
-        owners = [None] * len(self.chunks)  # a chunk another farm shard bakes has no owner here
-        for chunk_index, owner in zip(self.baked_chunks, split):
-            owners[chunk_index] = owner
-        return owners
-
-    def _estimated_seconds(self) -> float:
-        """One process's time for the whole job, from the first round's rays at a typical rate."""
-        return self.baked_vertices * self.settings.samples / TYPICAL_RAYS_PER_S
-
-    def _take_progress(self, lines: queue.Queue, wait: float) -> int:
-        """Counts the workers' progress lines; returns how many workers finished."""
-        finished = 0
-        while True:
-            try:
-                line = lines.get(timeout=wait) if wait else lines.get_nowait()
-            except queue.Empty:
-                return finished
-            wait = 0.0
-            if line is None:
-                finished += 1
-            elif line.startswith("PRT-PROGRESS "):
-                vertices, rays = map(int, line.split()[1:3])
-                self.done_vertices += vertices
-                self.rays += rays
 
     def _bounce(self):
         """Interreflections from the recorded hits: T_total = Σ_b (G ρ)^b T_direct, no new rays."""
@@ -337,7 +201,7 @@ class TransferJob(Job):
 
     def summary(self, results: list[ReceiverResult], receivers=None, elapsed: float | None = None) -> Summary:
         """receivers, elapsed: others than this job's (a texel bake's refinement runs several jobs); a merge's
-        time adds its shards' commands' seconds (take_parts)."""
+        time adds its shards' commands' seconds (executors.FromParts)."""
         receivers = receivers or self.receivers
         own_s = self.progress.elapsed if elapsed is None else elapsed
         # A merge's rays were cast by its shards: its rate is over their seconds baking and its own (the bounces).
