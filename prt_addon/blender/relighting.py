@@ -11,11 +11,10 @@ from contextlib import contextmanager
 import math
 
 import bpy
-import numpy as np
 
 from ..core import lights as core_lights
 from ..core.errors import StaleBake
-from . import display, heatmaps, storage, texel_maps
+from . import display, heatmaps, layouts, storage
 from .lights import environment_image, scene_lights, sync_sun_lamps
 
 
@@ -41,7 +40,7 @@ class Relighter:
     def forget(self):
         """Caches are by name: a newly loaded file starts afresh."""
         self._light_cache = core_lights.LightCache()
-        # mesh name → (bake key, ((P, n²) float32 transfer, corner points or None), or None for a stale bake)
+        # mesh name → (bake key, layouts.Shading, or None for a stale bake)
         self._transfers = {}
         self._shaded = {}     # mesh name → (bake key, light bytes) or a heatmap's state: the colours it holds
         self._reported = set()  # messages already printed
@@ -91,7 +90,7 @@ class Relighter:
         return self._transfers.get(mesh.name_full, (None,))[0] != _bake_key(mesh)
 
     def _receivers(self, scene):
-        """(object, (transfer, corner points)) for each mesh object of the scene with a usable bake."""
+        """(object, layouts.Shading) for each mesh object of the scene with a usable bake."""
         for ob in scene.objects:
             if ob.type == "MESH" and not ob.data.is_editmode:
                 baked = self._transfer(ob.data)
@@ -99,7 +98,7 @@ class Relighter:
                     yield ob, baked
 
     def _transfer(self, mesh):
-        """The mesh's transfer and corner points, read once per bake; a stale bake is reported once and never
+        """The mesh's transfer as its layout stores it, read once per bake; a stale bake is reported once and never
         applied."""
         key = _bake_key(mesh)
         if key is None:
@@ -109,10 +108,7 @@ class Relighter:
         if cached is not None and cached[0] == key:
             return cached[1]
         try:
-            if texel_maps.is_texel_bake(mesh):  # one row per texel, as the shading reads them
-                baked = np.ascontiguousarray(texel_maps.read_planes(mesh)[0].T), texel_maps.TEXEL_STORAGE
-            else:
-                baked = storage.read_transfer(mesh)[0], storage.corner_points_of(mesh)
+            baked = layouts.stored(mesh).read(mesh)
         except StaleBake as problem:
             baked = None
             self._report_once(f"PRT: not relighting: {problem}")
@@ -126,7 +122,7 @@ class Relighter:
 
     def _shade(self, receivers, settings):
         """Sums the lights once per SH order, then writes the colours of each mesh whose light or bake changed."""
-        orders = {math.isqrt(transfer.shape[-1]) for _, (transfer, _) in receivers}
+        orders = {math.isqrt(baked.transfer.shape[-1]) for _, baked in receivers}
         for entry in settings.prt_lights:
             if entry.use and entry.kind == "ENVIRONMENT" and environment_image(entry, settings) is None:
                 self._report_once(f"PRT: SH light {entry.name!r} has no readable image (missing file?); "
@@ -143,15 +139,12 @@ class Relighter:
 
     def _write_colours(self, receivers, totals):
         """The colours of each mesh whose light or bake changed."""
-        for ob, (transfer, corner_points) in receivers:
-            light = totals[math.isqrt(transfer.shape[-1])]
+        for ob, baked in receivers:
+            light = totals[math.isqrt(baked.transfer.shape[-1])]
             state = (_bake_key(ob.data), light.tobytes())
             if self._shaded.get(ob.data.name_full) == state:
                 continue
-            if corner_points is texel_maps.TEXEL_STORAGE:
-                texel_maps.write_shaded(ob.data, transfer, light)
-            else:
-                display.write_display_colours(ob.data, transfer, light, corner_points)
+            baked.layout.shade(ob.data, baked, light)
             self._shaded[ob.data.name_full] = state
 
     def _paint_heatmaps(self, receivers, mode):
@@ -178,12 +171,11 @@ def _bake_key(mesh):
 def _sync_display(scene, receivers, settings) -> list:
     """Display materials on the receivers while the PRT display is on; everything else shows its own. Returns the
     notes on originals that could not be put back (display.restore)."""
-    shown = {ob.name_full: where for ob, (_, where) in receivers} if settings.show_prt else {}
+    shown = {ob.name_full: baked.layout for ob, baked in receivers} if settings.show_prt else {}
     lost = []
     for ob in scene.objects:
         if ob.name_full in shown:
-            display.show(ob, texel_maps.display_source(ob.data) if shown[ob.name_full] is texel_maps.TEXEL_STORAGE
-                         else None)
+            display.show(ob, shown[ob.name_full].display_source(ob.data))
         elif display.is_shown(ob) and ob.mode != "EDIT":  # an object being edited keeps what it shows
             lost.append(display.restore(ob))
     display.set_albedo(settings.use_albedo and settings.mode == heatmaps.SHADED)  # a heatmap shows as it is

@@ -12,7 +12,7 @@ import numpy as np
 from ..core import bake, corners, executors, interpolation, job, lobes, settings as spec, subsurface
 from ..core.errors import InputError
 from ..core.progress import JobSequence, WrappingJob, old_objects_frozen
-from . import fingerprint, geometry, materials, storage, texel_bake
+from . import fingerprint, geometry, layouts, materials, texel_bake
 from .occluders import occluders_from_depsgraph
 
 
@@ -232,11 +232,9 @@ class SceneBake(WrappingJob):
                         if key in self.summary.per_object[ob.name]}}
             if self.summary.bounces is not None:
                 extra["bounces"] = self.summary.bounces
-            if isinstance(surface, texel_bake.TexelSurface):
-                texel_bake.write(ob, surface, result, extra, self.settings)
-            else:
-                storage.write_transfer(ob, result, extra, self.settings, surface.corner_points,
-                                       surface.split_vertices)
+            stored = (layouts.PerTexel(surface.receiver, surface.layout, surface.uv_map)
+                      if isinstance(surface, texel_bake.TexelSurface) else layouts.for_surface(surface))
+            stored.write(ob.data, result, extra, self.settings)
         return self.summary
 
     def _measure_interpolation(self, results):

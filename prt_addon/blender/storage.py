@@ -51,12 +51,11 @@ def _channel_planes(transfer: np.ndarray) -> list[tuple[str, np.ndarray]]:
     return list(zip(CHANNEL_LETTERS[transfer.shape[1]], transfer.transpose(1, 0, 2)))
 
 
-def write_transfer(ob, result, summary_fields: dict, settings: bake.BakeSettings, corner_points=None,
+def write_transfer(mesh, result, summary_fields: dict, settings: bake.BakeSettings, corner_points=None,
                    split_vertices: int = 0):
-    """Replaces any previous bake on the object's mesh: attributes first, metadata last. `result` holds one row per
-    shading point; `corner_points` (C,) each corner's point where vertices are split (CORNER domain), else None."""
-    mesh = ob.data
-    remove_transfer(mesh)
+    """Writes the bake's attributes, then its metadata, on a mesh without a bake (blender.layouts removes an
+    earlier one). `result` holds one row per shading point; `corner_points` (C,) each corner's point where
+    vertices are split (CORNER domain), else None."""
     order = settings.order
     domain = "POINT" if corner_points is None else "CORNER"
     rows = slice(None) if corner_points is None else corner_points
@@ -79,7 +78,7 @@ def write_transfer(ob, result, summary_fields: dict, settings: bake.BakeSettings
 
 
 def write_metadata(mesh, result, settings: bake.BakeSettings, domain: str, split_vertices: int, fields: dict):
-    """The bake's metadata, written last: per vertex or corner (`domain`), or per texel (blender.texel_maps)."""
+    """The bake's metadata, written last: its layout's `domain` (blender.layouts) and its figures."""
     mesh[METADATA_KEY] = {
         "order": settings.order,
         "mode": settings.mode,
@@ -148,9 +147,9 @@ def read_transfer(mesh) -> tuple[np.ndarray, dict]:
     """(P, n²) grey or (P, 3, n²) coloured float32 transfer per shading point (the vertices, unless the bake is
     per corner: see corner_points) and the metadata; raises StaleBake when it no longer fits the mesh."""
     meta = _metadata(mesh)
-    if meta.get("storage") == "TEXEL":
-        raise InputError(f"mesh {mesh.name!r} is baked per texel, not per vertex: compare it with "
-                         f"`prt validate --image`")
+    if meta.get("domain", "POINT") not in ("POINT", "CORNER"):  # attributes per point hold it, nothing else
+        raise InputError(f"mesh {mesh.name!r} is baked per {meta['domain'].lower()}, not per vertex: compare it "
+                         f"with `prt validate --image`")
     order, letters = meta["order"], CHANNEL_LETTERS[meta.get("channels", 1)]
     corner_points = corner_points_of(mesh)
     planes = [_read_plane(mesh, order, letter, corner_points, meta.get("points")) for letter in letters]

@@ -14,7 +14,7 @@ import numpy as np
 
 from ..core import bake, checks as core_checks, interpolation, job, lobes, texel_gather, texel_refine, texels
 from ..core.errors import InputError
-from . import storage, texel_maps
+from . import texel_maps
 from .mesh_arrays import mesh_triangles
 
 PROVISIONAL_RESOLUTION = 256  # overlaps are looked for at this resolution before the probe decides the real one
@@ -326,12 +326,3 @@ def refining_job(surfaces, settings: bake.BakeSettings, transfer_job) -> texel_r
         solved = np.concatenate([result.transfer for result in solve.results()])
         return texel_gather.GatheringJob(transfer_job(texel_receivers, gather_only=True), solved, albedo)
     return texel_refine.RefiningJob(receivers, grids, settings, target, gathering_job, first_job=solve)
-
-
-def write(ob, surface: TexelSurface, result, extra: dict, settings: bake.BakeSettings):
-    """Replaces the object's earlier bake (vertex or texel) with this texel bake: maps first, metadata last."""
-    mesh = ob.data
-    storage.remove_transfer(mesh)
-    maps = texel_maps.write_maps(mesh, surface.layout, result.transfer, result.rel_error, settings.order,
-                                 surface.uv_map)
-    storage.write_metadata(mesh, result, settings, "TEXEL", 0, {**maps, **extra})

@@ -47,22 +47,38 @@ def lightmap_uv_map(ob, chosen: str, may_create: bool, margin_texels: float, res
     if len(mesh.uv_layers) >= MAX_UV_MAPS:
         raise InputError(f"{ob.name!r} already has {MAX_UV_MAPS} UV maps, Blender's limit: choose one of them "
                          f"for its texels")
-    _lightmap_pack(mesh, margin_texels, resolution)
+    add_lightmap_uv_map(mesh, lightmap_pack_uvs(mesh, margin_texels, resolution))
     return PRT_UV_MAP
 
 
-def _lightmap_pack(mesh, margin_texels, resolution):
-    """A new UV map packed by Blender's own Lightmap Pack (it writes the active map, so ours is made active for it
-    and the artist's active and render-active maps are put back), one box per face, `margin_texels` apart."""
+def lightmap_pack_uvs(mesh, margin_texels: float, resolution: int) -> np.ndarray:
+    """(C, 2) float32: the UV map Blender's own Lightmap Pack makes of the mesh, one box per face, `margin_texels`
+    apart, found on a temporary copy of the mesh (removed again): the mesh itself is not touched."""
     from bl_operators.uvcalc_lightmap import lightmap_uvpack  # Blender's Lightmap Pack, without its operator
+    copy = mesh.copy()
+    try:
+        layers = copy.uv_layers
+        layers.new(name=PRT_UV_MAP, do_init=False)
+        layers.active = layers[PRT_UV_MAP]  # it writes the active map
+        with contextlib.redirect_stdout(io.StringIO()):  # it prints its progress
+            lightmap_uvpack([copy], PREF_SEL_ONLY=False, PREF_NEW_UVLAYER=False, PREF_PACK_IN_ONE=False,
+                            PREF_MARGIN_DIV=max(1, int(resolution / max(margin_texels, 1e-3))))
+        uvs = np.empty(len(copy.loops) * 2, dtype=np.float32)
+        layers[PRT_UV_MAP].uv.foreach_get("vector", uvs)
+    finally:
+        bpy.data.meshes.remove(copy)
+    return uvs.reshape(-1, 2)
+
+
+def add_lightmap_uv_map(mesh, uvs: np.ndarray):
+    """Adds PRT's own lightmap UV map holding `uvs` (C, 2); the artist's active and render-active maps stay as
+    they were (the new map is active while it is written, as Lightmap Pack leaves it where it is the only one)."""
     layers = mesh.uv_layers
     active = layers.active.name if layers.active else None
     render = next((layer.name for layer in layers if layer.active_render), None)
     layers.new(name=PRT_UV_MAP, do_init=False)
     layers.active = layers[PRT_UV_MAP]
-    with contextlib.redirect_stdout(io.StringIO()):  # it prints its progress
-        lightmap_uvpack([mesh], PREF_SEL_ONLY=False, PREF_NEW_UVLAYER=False, PREF_PACK_IN_ONE=False,
-                        PREF_MARGIN_DIV=max(1, int(resolution / max(margin_texels, 1e-3))))
+    layers[PRT_UV_MAP].uv.foreach_set("vector", np.ascontiguousarray(uvs, dtype=np.float32).ravel())
     if active is not None:
         layers.active = layers[active]
     if render is not None:
