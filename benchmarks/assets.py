@@ -306,7 +306,7 @@ def validate(names, settings: Settings):
 def reference_error(scene_bake: SceneBake, settings: Settings) -> dict:
     """The bake's actual error against a reference bake of 16 × the samples with another seed, at up to
     `reference_points` random shading points (all of them when fewer), and its own estimate at those points."""
-    receivers = scene_bake.job.receivers
+    receivers = [receiver.layout.receiver for receiver in scene_bake.plan.receivers]
     owners = np.concatenate([np.full(len(r.positions), k) for k, r in enumerate(receivers)])
     indices = np.concatenate([np.arange(len(r.positions)) for r in receivers])
     chosen = np.arange(len(owners))
@@ -314,16 +314,16 @@ def reference_error(scene_bake: SceneBake, settings: Settings) -> dict:
         chosen = np.sort(np.random.default_rng(PICK_SEED).choice(len(owners), settings.reference_points,
                                                                  replace=False))
     picks = Picks(owners[chosen], indices[chosen])
-    seed = scene_bake.settings.seed + REFERENCE_SEED_OFFSET
-    reference_settings = BakeSettings(order=scene_bake.settings.order, samples=settings.reference_samples,
+    seed = scene_bake.plan.settings.seed + REFERENCE_SEED_OFFSET
+    reference_settings = BakeSettings(order=scene_bake.plan.settings.order, samples=settings.reference_samples,
                                       max_samples=max(settings.reference_samples, BakeSettings.max_samples),
                                       seed=seed)
     start = time.perf_counter()
-    reference, _, _ = bake_picks(receivers, scene_bake.job.occluders, picks, reference_settings, settings.workers)
+    reference, _, _ = bake_picks(receivers, scene_bake.plan.occluders, picks, reference_settings, settings.workers)
     seconds = time.perf_counter() - start
     stored = picks.of([storage.read_transfer(ob.data)[0] for ob in scene_bake.objects])  # what the mesh holds
-    estimates = picks.of([result.rel_error for result in scene_bake.job.results()])
-    return {"actual": coefficient_error({"points": stored}, {"points": reference}, scene_bake.settings.order),
+    estimates = picks.of([result.rel_error for result in scene_bake.results.results])
+    return {"actual": coefficient_error({"points": stored}, {"points": reference}, scene_bake.plan.settings.order),
             "estimate": rms(estimates), "points": len(chosen), "time_s": seconds}
 
 
@@ -361,7 +361,8 @@ def measure(case: Case, settings: Settings, log=print) -> tuple:
     reference = reference_error(scene_bake, settings)
     compared = report if len(names) > 1 else report["per_object"][names[0]]
     parts, touching = [], {}
-    for ob, receiver in zip(scene_bake.objects, scene_bake.job.receivers):
+    receivers = [planned.layout.receiver for planned in scene_bake.plan.receivers]
+    for ob, receiver in zip(scene_bake.objects, receivers):
         colours, passes, rows = compared_colours(check, ob)
         touching[ob.name] = touching_floor(receiver, rows)
         parts.append((colours[~touching[ob.name]], passes[:, ~touching[ob.name]]))

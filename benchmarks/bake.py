@@ -26,7 +26,10 @@ import bpy  # noqa: E402  (bpy before mathutils, which the core imports)
 import numpy as np  # noqa: E402
 
 from prt_addon.blender import sample_scenes  # noqa: E402
-from prt_addon.blender.scene_bake import SceneBake, local_executor  # noqa: E402
+from prt_addon.blender.execute import local_executor  # noqa: E402
+from prt_addon.blender.plan import plan_bake  # noqa: E402
+from prt_addon.blender.request import read_request  # noqa: E402
+from prt_addon.blender.scene_bake import SceneBake  # noqa: E402
 from prt_addon.commands.common import schema_registered  # noqa: E402
 from prt_addon.core import bake, estimator, job, lobes, ray_caster, scheduling, sh  # noqa: E402
 
@@ -76,8 +79,8 @@ def fresh_demo_scene():
 def scene_geometry():
     """Receivers and occluders exactly as the bake gathers them (nothing is baked)."""
     fresh_demo_scene()
-    gathered = SceneBake(bpy.context, bake.BakeSettings(order=ORDER))
-    return gathered.job.receivers, gathered.job.occluders
+    plan = plan_bake(read_request(bpy.context, bake.BakeSettings(order=ORDER)))
+    return [receiver.layout.receiver for receiver in plan.receivers], plan.occluders
 
 
 @dataclass
@@ -328,7 +331,7 @@ def scene_bake(settings, objects, workers):
 
 
 def results_by_name(run):
-    return {receiver.name: result for receiver, result in zip(run.job.receivers, run.job.results())}
+    return dict(zip(run.results.names, run.results.results))
 
 
 def demo_bake(receivers, sample_sets, all_picks, reference, config):

@@ -32,8 +32,8 @@ import numpy as np  # noqa: E402
 import prt_addon  # noqa: E402
 from prt_addon.blender import sample_scenes, texel_maps  # noqa: E402
 from prt_addon.blender.image_validation import validate_image  # noqa: E402
+from prt_addon.blender.layouts import PerTexel  # noqa: E402
 from prt_addon.blender.scene_bake import SceneBake  # noqa: E402
-from prt_addon.blender.texel_bake import TexelSurface  # noqa: E402
 from prt_addon.core import bake, job, lobes  # noqa: E402
 
 ROOM_GOAL_S = 60.0
@@ -75,8 +75,8 @@ def room(sizes: Sizes, workers):
     summary = scene_bake.run()
     seconds = time.perf_counter() - start
     print(summary.line())
-    print(f"texel lattices: {scene_bake.levels.lattice_line()}")
-    texels = sum(len(s.layout.texels) for s in scene_bake.surfaces.receivers if isinstance(s, TexelSurface))
+    print(f"texel lattices: {scene_bake.results.lattices}")
+    texels = sum(len(s.layout.texels) for s in scene_bake.results.layouts if isinstance(s, PerTexel))
     verdict = "PASS" if seconds <= ROOM_GOAL_S else "MISS"
     print(f"room: floor and walls at {resolution} × {resolution} ({texels:,} covered texels) + torus per vertex, "
           f"1 % target, {workers} workers: {seconds:.1f} s (gathering and checks included)   goal <= "
@@ -93,8 +93,8 @@ def actual_error(scene_bake, settings, workers, sizes: Sizes):
     own RMS noise), both relative to the unshadowed transfer's norm."""
     rng = np.random.default_rng(7)
     receivers, stored = [], []
-    for ob, surface in zip(scene_bake.objects, scene_bake.surfaces.receivers):
-        if not isinstance(surface, TexelSurface):
+    for ob, surface in zip(scene_bake.objects, scene_bake.results.layouts):
+        if not isinstance(surface, PerTexel):
             continue
         rows = rng.choice(len(surface.layout.texels), size=min(sizes.reference_texels, len(surface.layout.texels)),
                           replace=False)
@@ -105,7 +105,7 @@ def actual_error(scene_bake, settings, workers, sizes: Sizes):
         stored.append(planes[:, surface.layout.texels[rows]].T)
     reference_settings = bake.BakeSettings(order=settings.order, samples=sizes.reference_samples,
                                            seed=settings.seed + 1)
-    results = job.TransferJob(receivers, scene_bake.job.occluders, reference_settings, scene_bake.executor).run()
+    results = job.TransferJob(receivers, scene_bake.plan.occluders, reference_settings, scene_bake.executor).run()
     scale = lobes.unshadowed_norm(settings.order)
     difference = np.concatenate([np.linalg.norm(s - r.transfer, axis=1) for s, r in zip(stored, results)]) / scale
     noise = np.concatenate([r.rel_error for r in results])
@@ -140,7 +140,7 @@ def image(sizes: Sizes, workers):
             report = validate_image(bpy.context, samples=sizes.cycles_samples, passes=sizes.cycles_passes,
                                     resolution=sizes.image_resolution)
             errors[storage] = report.comparison
-            chosen = "; ".join(scene_bake.storage_decisions) or "every object per vertex"
+            chosen = "; ".join(scene_bake.report().storage) or "every object per vertex"
             print(f"image: sphere over a {label}, Storage {storage.title()}: bake {summary.time_s:.1f} s; {chosen}")
             print(f"  {report.line()}")
         auto = errors["auto"]

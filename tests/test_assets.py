@@ -72,7 +72,7 @@ def test_an_imported_obj_is_split_exactly_where_its_faces_differ(empty_scene, na
     assert not any(polygon.use_smooth for polygon in ob.data.polygons)
     (least_split, least_points), (most_split, most_points) = split_bounds(ob.data)
     gathered = SceneBake(bpy.context, BakeSettings(), [ob.name])  # gathers the surface; nothing is baked
-    (surface,) = gathered.surfaces.receivers
+    (surface,) = [receiver.surface for receiver in gathered.plan.receivers]
     assert least_split <= surface.split_vertices <= most_split
     assert least_points <= len(surface.receiver.positions) <= most_points
     if name in ("woody", "cow"):  # no nearly coplanar faces: the count is exact

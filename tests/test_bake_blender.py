@@ -104,7 +104,7 @@ def test_flat_objects_become_closed_form_occluders_in_world_space(empty_scene):
     shelf.location, shelf.rotation_euler = (0.0, 0.0, 1.5), (np.pi, 0.0, 0.0)  # facing down at the floor
     hidden = grid("Hidden", size=8.0)
     hidden.hide_set(True)
-    occluders = SceneBake(bpy.context, BakeSettings(samples=16), ["Floor"]).job.occluders
+    occluders = SceneBake(bpy.context, BakeSettings(samples=16), ["Floor"]).plan.occluders
     floor_corners, shelf_corners = occluders.polygons  # the largest first; not the cube, not the hidden plane
     assert len(floor_corners) == len(shelf_corners) == 4
     np.testing.assert_allclose(sorted(map(tuple, floor_corners)),

@@ -11,6 +11,7 @@ import pytest
 
 from conftest import run_cli
 from prt_addon.blender import checks as scene_checks
+from prt_addon.blender.execute import first_job
 from prt_addon.blender.scene_bake import SceneBake
 from prt_addon.core import bake, checks
 from prt_addon.core.bake import BakeSettings
@@ -25,7 +26,8 @@ def gathered(names, **settings):
 
 
 def findings(scene_bake, subject):
-    return [check for check in scene_checks.scene_checks(bpy.context, scene_bake) if check.subject == subject]
+    return [check for check in scene_checks.scene_checks(bpy.context, scene_bake.plan, scene_bake.executor)
+            if check.subject == subject]
 
 
 # -- paths -------------------------------------------------------------------------------------------------------
@@ -111,12 +113,13 @@ def test_the_stored_estimate_is_exactly_the_attributes_a_bake_writes(empty_scene
     floor, cube = grid("Floor"), box("Cube")
     cube.data.shade_flat()  # its corners' normals differ: stored per face corner, with each corner's point
     scene_bake = gathered(["Floor", "Cube"])
-    estimated = checks.stored_bytes(scene_checks.bake_size(scene_bake, checks.TimedSample(0, 0, 0, 0.0, 0.0), 1,
+    first = first_job(scene_bake.plan, scene_bake.executor)
+    estimated = checks.stored_bytes(scene_checks.bake_size(scene_bake.plan, first, checks.TimedSample(0, 0, 0, 0.0, 0.0),
                                                            False))
     scene_bake.run(log=lambda line: None)
     written = sum(len(attribute.data) * ATTRIBUTE_BYTES[attribute.data_type]
                   for ob in (floor, cube) for attribute in ob.data.attributes if attribute.name.startswith("_prt_"))
-    assert scene_bake.surfaces.receivers[1].corner_points is not None
+    assert scene_bake.plan.receivers[1].layout.corner_points is not None
     assert estimated == written
 
 

@@ -27,10 +27,10 @@ from conftest import ROOT, run_cli
 from test_bake_blender import box, grid
 from test_interreflect_blender import coloured, wall
 from test_stale import stored
-from prt_addon.blender import storage
-from prt_addon.blender.scene_bake import SceneBake
+from prt_addon.blender import farm, storage
+from prt_addon.blender.execute import execute, local_executor
 from prt_addon.commands import farm_dask
-from prt_addon.core import outputs, settings as spec
+from prt_addon.core import executors, outputs, settings as spec
 from prt_addon.core.bake import BakeSettings
 from prt_addon.core.errors import InputError
 from prt_addon.core.workers import shard_chunks
@@ -142,13 +142,14 @@ def test_a_shard_with_forked_workers_bakes_the_same_chunks_and_bits_as_with_one_
     bpy.ops.wm.open_mainfile(filepath=str(scenes["room"]), load_ui=False)
     baked_shards = []
     for workers in (1, 2):
-        scene_bake = SceneBake(bpy.context, BakeSettings(order=3, samples=16), workers=workers, farm=True)
-        scene_bake.executor.min_rays = 0  # workers even for this small scene
-        scene_bake.bake_only((1, 2))
-        scene_bake.job.run()
-        baked_shards.append(scene_bake.executor.kept["bake"])
+        plan = farm.farm_plan(bpy.context, BakeSettings(order=3, samples=16), None)
+        local = local_executor(workers)
+        local.min_rays = 0  # workers even for this small scene
+        shard = executors.FarmShard((1, 2), local)
+        execute(plan, shard).run()
+        baked_shards.append(shard.kept["bake"])
     one, forked = baked_shards
-    assert sorted(one) == sorted(forked) == shard_chunks(len(scene_bake.job.chunks), 1, 2)
+    assert sorted(one) == sorted(forked) == shard_chunks(farm.part_info(plan, (1, 2)).chunks, 1, 2)
     for index, result in one.items():
         for name in ("transfer", "std_error", "rays", "skipped"):
             assert np.array_equal(getattr(result, name), getattr(forked[index], name)), name

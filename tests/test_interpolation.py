@@ -68,7 +68,7 @@ def test_a_one_quad_floor_under_a_box_reports_the_shadow_its_vertices_miss(empty
     floor = bpy.data.objects["Plane"]
     surface = geometry.surface_from_object(floor, bpy.context.evaluated_depsgraph_get(), [])
     transfer, _ = storage.read_transfer(floor.data)
-    occluders = scene_bake.job.occluders
+    occluders = scene_bake.plan.occluders
 
     def baked_at(points, normals):
         receiver = bake.Receiver("quadrature", points, normals, 5)

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from prt_addon.blender import storage
+from prt_addon.blender.execute import first_job
 from prt_addon.blender.scene_bake import SceneBake
 from prt_addon.core import estimator, executors, lobes, sh
 from prt_addon.core.bake import BakeSettings
@@ -167,13 +168,13 @@ def spawned_worker_out_of_memory(scene_bake, monkeypatch):
     scene_bake.executor = executors.SpawnedWorkers(2, [sys.executable, "-c",
                                                        "import sys; sys.exit('worker ran out of memory')"])
     scene_bake.executor.min_rays, scene_bake.executor.start_s = 0, 0.0
-    scene_bake.job.run_by(scene_bake.executor)
     return "worker ran out of memory"
 
 
 def forked_worker_out_of_memory_on_its_third_chunk(scene_bake, monkeypatch):
     assert isinstance(scene_bake.executor, executors.ForkedWorkers)
-    scene_bake.executor.owners = [1] * len(scene_bake.job.chunks)  # the worker bakes every chunk: it reaches a third
+    # the worker bakes every chunk: it reaches a third
+    scene_bake.executor.owners = [1] * len(first_job(scene_bake.plan, scene_bake.executor).chunks)
     baking_process, real_bake_chunk, chunks_baked = os.getpid(), estimator.bake_chunk, []
 
     def failing_in_the_worker(*args):

@@ -19,9 +19,9 @@ SAMPLES = "16384"  # suzanne at this many rays a vertex bakes for tens of second
 # The real command with spawned worker processes, which the bpy module uses where it cannot fork (macOS, Windows)
 SPAWNING = ("import sys\n"
             "import bpy\n"
-            "from prt_addon.blender import scene_bake\n"
+            "from prt_addon.blender import execute\n"
             "from prt_addon.core import executors\n"
-            "scene_bake.local_executor = lambda workers: executors.SpawnedWorkers(workers, [sys.executable, '-c'])\n"
+            "execute.local_executor = lambda workers: executors.SpawnedWorkers(workers, [sys.executable, '-c'])\n"
             "from prt_addon.commands.cli import main\n"
             "sys.exit(main(sys.argv[1:]))\n")
 

@@ -111,7 +111,7 @@ def test_a_render_uv_map_that_serves_as_a_lightmap_is_used_as_it_is(empty_scene)
     floor = floor_quad(cuts=4)
     scene_bake = run_bake(["Floor"], mode="unshadowed", storage="texel", resolution=32)
     assert [layer.name for layer in floor.data.uv_layers] == ["UVMap"]
-    assert scene_bake.storage_decisions[0] == "'Floor': Storage Texel; 32 × 32 texels in UV map 'UVMap', 1024 covered"
+    assert scene_bake.report().storage[0] == "'Floor': Storage Texel; 32 × 32 texels in UV map 'UVMap', 1024 covered"
 
 
 def test_a_chosen_uv_map_beyond_the_unit_square_is_refused(empty_scene):

@@ -1,6 +1,7 @@
-"""Checks before any ray, gathered from the scene: where the bake will be saved, what it will cost (core.checks
-grades memory and time from the gathered bake and a timed sample of it), and what is wrong with its objects. The
-bake operator, the panel's Check button and `prt bake` all run these, so they find the same things."""
+"""Checks before any ray of the bake, on its plan (blender.plan): where the bake will be saved, what it will cost
+(core.checks grades memory and time from the plan and a timed sample of it), and what is wrong with its objects.
+The bake operator, the panel's Check button and `prt bake` all run these, so they find the same things; they write
+nothing."""
 
 import os
 import tempfile
@@ -11,6 +12,7 @@ import numpy as np
 from ..core import checks
 from ..core.checks import ERROR, INFO, WARNING, Check
 from . import geometry
+from .execute import first_job
 
 
 def output_check(output: str | None, required: bool) -> Check:
@@ -24,48 +26,50 @@ def output_check(output: str | None, required: bool) -> Check:
     return Check(INFO, "output", "the file is not saved yet: the bake stays in memory until you save it")
 
 
-def all_checks(context, scene_bake, output: str | None, required: bool) -> list[Check]:
-    return [output_check(output, required)] + scene_checks(context, scene_bake)
+def all_checks(context, plan, executor, output: str | None, required: bool) -> list[Check]:
+    return [output_check(output, required)] + scene_checks(context, plan, executor)
 
 
-def scene_checks(context, scene_bake) -> list[Check]:
-    """Workers, memory, time, then each object's problems, then what the gathering found (objects not baked,
-    notes). `scene_bake` has gathered everything and cast no ray."""
-    job, settings = scene_bake.job, scene_bake.settings
+def scene_checks(context, plan, executor) -> list[Check]:
+    """Workers, memory, time, then each object's problems, then what the plan found (objects not baked, notes), for
+    the plan (blender.plan) baked by `executor` (core.executors). The bake's first job is made to size it, not run;
+    the time is estimated from a timed sample of a few thousand rays (core.checks.timed_sample), which writes
+    nothing."""
+    job, settings = first_job(plan, executor), plan.settings
     processes = job.processes()
-    spawned = processes > 1 and job.executor.spawned
+    spawned = processes > 1 and executor.spawned
     parallel = min(processes, os.cpu_count() or 1)
     sample = checks.timed_sample(job.receivers, job.occluders, settings)
-    seconds = checks.estimated_seconds(sample, job.total_vertices, parallel, job.executor.start_s if spawned else 0.0)
+    seconds = checks.estimated_seconds(sample, job.total_vertices, parallel, executor.start_s if spawned else 0.0)
     found = [checks.workers_check(processes, tempfile.gettempdir()),
-             checks.memory_check(bake_size(scene_bake, sample, processes, spawned), checks.available_memory()),
+             checks.memory_check(bake_size(plan, job, sample, spawned), checks.available_memory()),
              checks.time_check(sample, seconds, settings, parallel)]
     casts_rays = settings.mode != "unshadowed"
-    receivers = scene_bake.objects
-    others = [ob for ob in geometry.visible_mesh_objects(context) if ob not in receivers] if casts_rays else []
+    receivers = [bpy.data.objects[(name, None)] for name in plan.names]
+    others = ([ob for ob in geometry.visible_mesh_objects(context) if ob not in receivers] if casts_rays else [])
     for ob in receivers + others:
         found += object_checks(ob, receiver=ob in receivers, casts_rays=casts_rays)
-    found += [Check(WARNING, "not baked", problem) for problem in scene_bake.problems]
-    found += [Check(INFO, "note", note) for note in scene_bake.notes]
+    found += [Check(WARNING, "not baked", problem) for problem in plan.problems]
+    found += [Check(INFO, "note", note) for note in plan.notes()]
     return found
 
 
-def bake_size(scene_bake, sample: checks.TimedSample, processes: int, spawned: bool) -> checks.BakeSize:
-    job = scene_bake.job
-    receivers = scene_bake.surfaces.receivers
-    split = [len(s.corner_points) for s in receivers if s.corner_points is not None]
+def bake_size(plan, job, sample: checks.TimedSample, spawned: bool) -> checks.BakeSize:
+    """What the plan's bake holds, `job` its first job (blender.execute.first_job)."""
+    layouts = plan.layouts()
+    split = [len(layout.corner_points) for layout in layouts if layout.corner_points is not None]
     occluders = job.occluders
     return checks.BakeSize(
         points=job.total_vertices,
-        stored_rows=sum(len(s.receiver.positions) for s in receivers if s.corner_points is None) + sum(split),
+        stored_rows=sum(layout.stored_rows() for layout in layouts),
         split_corners=sum(split),
         occluder_vertices=len(occluders.vertices) if occluders else 0,
         occluder_triangles=len(occluders.triangles) if occluders else 0,
-        order=scene_bake.settings.order,
+        order=plan.settings.order,
         channels=job.albedo[0].shape[1] if job.albedo else 1,
-        rays=job.total_vertices * scene_bake.settings.samples if occluders else 0,
+        rays=job.total_vertices * plan.settings.samples if occluders else 0,
         hits_per_ray=sample.hits / sample.rays if sample.rays else 0.0,
-        processes=processes, spawned=spawned)
+        processes=job.processes(), spawned=spawned)
 
 
 def object_checks(ob, receiver: bool, casts_rays: bool) -> list[Check]:

@@ -1,68 +1,86 @@
-"""Farm shards of a scene bake (core.shards): one shard baked into a part file, and parts merged into the scene,
-stored as a one-process bake stores it."""
+"""Farm shards of a scene bake (core.shards), through the bake's public steps: one shard executed into a part file
+(core.executors.FarmShard), and parts merged into the scene (core.executors.FromParts), stored as a one-process
+bake stores it."""
 
 from dataclasses import asdict
 import os
 
 import bpy
 
-from ..core import executors, part_file, shards
+from ..core import executors, part_file, scheduling, settings as spec, shards
 from ..core.bake import BakeSettings
 from ..core.errors import InputError
-from .scene_bake import SceneBake
+from .execute import between_job, execute, first_job, local_executor
+from .plan import BakePlan, plan_bake
+from .request import read_request
+from .store import BakeReport, store
+
+PART_JOBS = ("bake", "probes")  # the jobs whose chunks a part holds, by name: the vertices', the probes'
+
+
+def farm_plan(context, settings: BakeSettings, names) -> BakePlan:
+    """The plan of a bake that farm shards bake and a merge stores: every receiver per vertex."""
+    return plan_bake(read_request(context, settings, names, farm=True))
 
 
 def bake_shard(context, settings: BakeSettings, names, shard, out: str, stopwatch: shards.Stopwatch,
                workers: int = 1, log=None) -> shards.PartInfo:
     """Bakes shard (K, N) of the scene's bake and writes its part file, its seconds read from `stopwatch` (started
     with the command); nothing in the scene changes."""
-    scene_bake = SceneBake(context, settings, names, workers=workers, farm=True)
-    return bake_share(scene_bake, shard, out, stopwatch, log)
+    return bake_share(farm_plan(context, settings, names), shard, out, stopwatch, log,
+                      local_executor(spec.worker_count(workers)))
 
 
-def bake_share(scene_bake: SceneBake, shard, out: str, stopwatch: shards.Stopwatch, log=None) -> shards.PartInfo:
-    """Bakes shard (K, N) of a gathered farm bake and writes its part file, its seconds read from `stopwatch`."""
-    scene_bake.bake_only(shard)
-    scene_bake.sequence.run(log=log)  # its vertices' chunks and its probes'
-    results, probe_results = (scene_bake.executor.kept.get(name, {}) for name in ("bake", "probes"))
-    info = part_info(scene_bake, shard)
+def bake_share(plan: BakePlan, shard, out: str, stopwatch: shards.Stopwatch, log=None,
+               local=None) -> shards.PartInfo:
+    """Bakes shard (K, N) of a farm plan with `local` (this process alone by default) and writes its part file, its
+    seconds read from `stopwatch`: its share of the vertices' chunks and of the probes'."""
+    executor = executors.FarmShard(shard, local)
+    execution = execute(plan, executor)
+    execution.run(log=log)
+    results, probe_results = (executor.kept.get(name, {}) for name in PART_JOBS)
+    info = part_info(plan, shard)
     info.rays = int(sum(int(result.rays.sum()) for result in [*results.values(), *probe_results.values()]))
-    info.rays_s, info.workers = scene_bake.levels.progress.elapsed, scene_bake.job.workers
+    info.rays_s, info.workers = execution.progress.elapsed, executor.workers
     shards.write_part(out, info, results, probe_results, stopwatch)
     return info
 
 
-def merge_parts(context, paths, log=None, scene_bake: SceneBake | None = None) -> SceneBake:
-    """Merges the part files (or every part in a folder given) into the scene as one bake (stored, not saved), into
-    `scene_bake` where the scene was gathered for them already (a farm bake, `farm`). Refuses, before changing
-    anything, parts from another scene or selection, stale ones, duplicates and missing shards, naming them all,
-    then a part whose arrays are not the scene's or hold values no bake makes, naming it (core.part_file)."""
+def merge_parts(context, paths, log=None, plan: BakePlan | None = None) -> BakeReport:
+    """Merges the part files (or every part in a folder given) into the scene as one bake (stored, not saved), of
+    `plan` where the scene was planned for them already (a farm bake). Refuses, before changing anything, parts from
+    another scene or selection, stale ones, duplicates and missing shards, naming them all, then a part whose
+    arrays are not the scene's or hold values no bake makes, naming it (core.part_file)."""
     if not paths:
         raise InputError("no part files to merge")
     parts = [(path, part_file.read_part(path)) for path in shards.part_paths(paths)]
     chosen = shards.chosen_bake([info for _, info in parts])
-    if scene_bake is None:
-        scene_bake = SceneBake(context, BakeSettings(**chosen.settings), chosen.receivers, farm=True)
-    problems = shards.refusals(parts, part_info(scene_bake, (0, chosen.shards)))
+    if plan is None:
+        plan = farm_plan(context, BakeSettings(**chosen.settings), chosen.receivers)
+    problems = shards.refusals(parts, part_info(plan, (0, chosen.shards)))
     if problems:
         raise InputError("cannot merge: " + "; ".join(problems) + "; nothing was written")
-    shape = part_file.PartShape.of(scene_bake.job, scene_bake.probe_job)
-    loaded = dict(zip(("bake", "probes"), zip(*[part_file.load_part(path, info, shape) for path, info in parts])))
+    sizing = executors.InProcess()
+    shape = part_file.PartShape.of(first_job(plan, sizing), between_job(plan, sizing))
+    loaded = [part_file.load_part(path, info, shape) for path, info in parts]
+    chunks = {name: [result for held in loaded for result in held[index]] for index, name in enumerate(PART_JOBS)}
     infos = [info for _, info in parts]
-    from_parts = executors.FromParts(lambda name: (result for chunks in loaded[name] for result in chunks),
-                                     sum(info.time_s for info in infos), sum(info.rays_s for info in infos),
-                                     sum(info.workers for info in infos))
-    scene_bake.job.run_by(from_parts)
-    scene_bake.probe_job.run_by(from_parts)
-    scene_bake.run(log=log)
-    return scene_bake
+    from_parts = executors.FromParts(chunks.__getitem__, sum(info.time_s for info in infos),
+                                     sum(info.rays_s for info in infos), sum(info.workers for info in infos))
+    return store(plan, execute(plan, from_parts).run(log=log))
 
 
-def part_info(scene_bake: SceneBake, shard) -> shards.PartInfo:
+def part_info(plan: BakePlan, shard) -> shards.PartInfo:
     """What a part says of the bake it belongs to, for this scene as it is now."""
+    solved = plan.solved_surfaces()
     return shards.PartInfo(
-        shard=shard[0], shards=shard[1], chunks=len(scene_bake.job.chunks),
-        probe_chunks=len(scene_bake.probe_job.chunks),
-        scene=os.path.basename(bpy.data.filepath), surfaces=[s.receiver.name for s in scene_bake.surfaces.all],
-        receivers=[ob.name for ob in scene_bake.objects], settings=asdict(scene_bake.settings),
-        fingerprints=scene_bake.fingerprints)
+        shard=shard[0], shards=shard[1], chunks=len(scheduling.chunk_rows([surface.receiver for surface in solved])),
+        probe_chunks=len(scheduling.chunk_rows(plan.between.receivers)),
+        scene=os.path.basename(bpy.data.filepath), surfaces=[surface.receiver.name for surface in solved],
+        receivers=plan.names, settings=asdict(plan.settings), fingerprints=plan.request.fingerprints)
+
+
+def build_ray_tree(plan: BakePlan):
+    """Builds the occluders' ray tree now (they keep it), so that shards forked afterwards share it."""
+    if plan.occluders is not None:
+        plan.occluders.ray_caster()

@@ -50,6 +50,10 @@ class PerVertex:
         """The rows written on the mesh."""
         return len(self.receiver.positions)
 
+    def map_bytes(self, order: int) -> int:
+        """What baking its texel maps holds in memory (none per point)."""
+        return 0
+
     def write(self, mesh, result, fields: dict, settings: bake.BakeSettings):
         """Replaces any earlier bake of the mesh with this one: attributes first, metadata last."""
         storage.remove_transfer(mesh)
@@ -96,6 +100,7 @@ class PerTexel:
     """Texel centres in a lightmap UV map (core.texels), stored as packed float maps (blender.texel_maps); `uvs`,
     one (u, v) per face corner, where PRT's own lightmap UV map is to be added when the bake is stored."""
     domain = texel_maps.TEXEL_STORAGE
+    corner_points, split_vertices = None, 0
     between_vertices = False  # its estimate holds what interpolating between texels may miss (core.texel_refine)
     takes_subsurface = False
 
@@ -110,8 +115,7 @@ class PerTexel:
     def stored_rows(self) -> int:
         return len(self.layout.texels)
 
-    def bytes(self, order: int) -> int:
-        """What baking its maps holds in memory."""
+    def map_bytes(self, order: int) -> int:
         return texels.texel_bake_bytes(self.layout.width, self.layout.height, order)
 
     def write(self, mesh, result, fields: dict, settings: bake.BakeSettings):

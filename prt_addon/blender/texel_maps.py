@@ -29,17 +29,18 @@ MAX_UV_MAPS = 8  # Blender's limit per mesh
 
 
 # -- the lightmap UV map ----------------------------------------------------------------------------------------
-def lightmap_uv_map(ob, chosen: str, may_create: bool, margin_texels: float, resolution: int) -> str:
-    """The UV map the texels follow: `chosen` (which must exist), else the PRT Lightmap map, made here with
-    Blender's Lightmap Pack if it does not exist yet and `may_create`. The artist's own maps and which of them is
-    active stay as they were."""
+def lightmap_uv_map(ob, chosen: str, may_create: bool, margin_texels: float,
+                    resolution: int) -> tuple[str, np.ndarray | None]:
+    """The UV map the texels follow, and None, or PRT's own map and the (C, 2) UVs it is to get: `chosen` (which
+    must exist), else the PRT Lightmap map, else, where `may_create`, the UVs of Blender's Lightmap Pack, for the
+    bake's storing to add (add_lightmap_uv_map). Nothing of the mesh changes here."""
     mesh = ob.data
     if chosen:
         if chosen not in mesh.uv_layers:
             raise InputError(f"{ob.name!r} has no UV map named {chosen!r} for its texels")
-        return chosen
+        return chosen, None
     if PRT_UV_MAP in mesh.uv_layers:
-        return PRT_UV_MAP
+        return PRT_UV_MAP, None
     if not may_create:
         owned = ", ".join(repr(layer.name) for layer in mesh.uv_layers) or "none"
         raise InputError(f"{ob.name!r}: texel storage needs a lightmap UV map; choose one of its UV maps ({owned}) "
@@ -47,8 +48,7 @@ def lightmap_uv_map(ob, chosen: str, may_create: bool, margin_texels: float, res
     if len(mesh.uv_layers) >= MAX_UV_MAPS:
         raise InputError(f"{ob.name!r} already has {MAX_UV_MAPS} UV maps, Blender's limit: choose one of them "
                          f"for its texels")
-    add_lightmap_uv_map(mesh, lightmap_pack_uvs(mesh, margin_texels, resolution))
-    return PRT_UV_MAP
+    return PRT_UV_MAP, lightmap_pack_uvs(mesh, margin_texels, resolution)
 
 
 def lightmap_pack_uvs(mesh, margin_texels: float, resolution: int) -> np.ndarray:

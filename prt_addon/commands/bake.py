@@ -5,9 +5,12 @@ import argparse
 import bpy
 
 from ..blender import checks as scene_checks
-from ..blender.farm import bake_share, bake_shard, merge_parts
+from ..blender.execute import execute, local_executor
+from ..blender.farm import bake_share, bake_shard, build_ray_tree, farm_plan, merge_parts
 from ..blender.fingerprint import stale_line, stale_receivers
-from ..blender.scene_bake import SceneBake
+from ..blender.plan import plan_bake
+from ..blender.request import read_request
+from ..blender.store import store
 from ..core import checks, presets, settings as spec
 from ..core.bake import BakeSettings
 from ..core.errors import InputError
@@ -114,25 +117,25 @@ def run(args, in_blender: bool) -> int:
             return 0
     if args.dask:
         with farm_dask.dask_bake(args.dask, bpy.data.filepath, settings, receivers, log) as cluster:
-            # Gathered once, while the cluster starts: local shards are forks that bake their share of it (with its
+            # Planned once, while the cluster starts: local shards are forks that bake their share of it (with its
             # ray tree, built before they fork), and the merge stores the parts into it.
-            scene_bake = SceneBake(bpy.context, settings, receivers, farm=True)
+            plan = farm_plan(bpy.context, settings, receivers)
             if cluster.forks_shards:
-                scene_bake.build_ray_tree()
-            parts = cluster.parts(lambda shard, part: bake_share(scene_bake, shard, part, Stopwatch()))
-            merge_parts(bpy.context, parts, log=log, scene_bake=scene_bake)
-        warn(scene_bake.problems + scene_bake.notes)
+                build_ray_tree(plan)
+            parts = cluster.parts(lambda shard, part: bake_share(plan, shard, part, Stopwatch()))
+            report = merge_parts(bpy.context, parts, log=log, plan=plan)
+        warn(report.problems + report.notes)
     else:
-        scene_bake = SceneBake(bpy.context, settings, receivers, workers=workers,
-                               storage_options=storage_options(args))
-        found += scene_checks.scene_checks(bpy.context, scene_bake)
+        plan = plan_bake(read_request(bpy.context, settings, receivers, storage_options(args)))
+        executor = local_executor(spec.worker_count(workers))
+        found += scene_checks.scene_checks(bpy.context, plan, executor)
         log("prt: checks before any ray:")
         for check in found:
             log(f"prt:   {check.line()}")
         checks.stop_on_errors(found)
-        scene_bake.run(log=log)
-    log(scene_bake.summary.line())
-    save_bake(scene_bake, args.output, args.report)
+        report = store(plan, execute(plan, executor).run(log=log))
+    log(report.summary.line())
+    save_bake(report, args.output, args.report)
     return 0
 
 

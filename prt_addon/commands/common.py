@@ -80,12 +80,12 @@ def check_outputs(outputs, inputs=(), saved=None):
     check([*([saved] if saved else []), *outputs], inputs)
 
 
-def save_bake(scene_bake, output, report):
-    """Saves the baked scene (over the opened file without `output`) and its JSON report, each whole or not at
-    all."""
+def save_bake(bake_report, output, report):
+    """Saves the baked scene (over the opened file without `output`) and its JSON report (blender.store.BakeReport)
+    at `report`, each whole or not at all."""
     save_blend(saved_file(output)[1])
     if report:
-        write_json(report, scene_bake.report().as_dict())
+        write_json(report, bake_report.as_dict())
 
 
 def add_object_options(parser, default: str):

@@ -12,11 +12,15 @@ import time
 import bpy
 
 from ..blender import lights, sample_scenes
+from ..blender.execute import execute, local_executor
 from ..blender.outputs import save_blend
+from ..blender.plan import plan_bake
 from ..blender.relighting import Relighter
-from ..blender.scene_bake import SceneBake
+from ..blender.request import read_request
 from ..blender.schema import add_light
+from ..blender.store import store
 from ..core import bake
+from ..core.settings import worker_count
 from .common import check_outputs, log, write_json
 from .relight import relight_file
 
@@ -63,9 +67,10 @@ def save_baked_demo(blend_path: str, workers: int, samples: int) -> dict:
     print(f"prt demo: built the demo scene ({', '.join(sorted(o.name for o in objects.values() if o))})")
 
     settings = bake.BakeSettings(order=4, mode="shadowed", samples=samples)
-    scene_bake = SceneBake(bpy.context, settings, workers=workers)
-    log(scene_bake.run(log=log).line())
-    bake_report = scene_bake.report().as_dict()  # before the file is reopened and these objects go
+    plan = plan_bake(read_request(bpy.context, settings))
+    stored = store(plan, execute(plan, local_executor(worker_count(workers))).run(log=log))
+    log(stored.summary.line())
+    bake_report = stored.as_dict()  # before the file is reopened and these objects go
 
     scene = bpy.context.scene
     add_lights(scene, objects["sun"])

@@ -26,8 +26,8 @@ def run(args, in_blender: bool) -> int:
     open_file(blend_file, required=not in_blender)
     check_outputs([("--report", args.report)], [("the part file", path) for path in part_paths(parts)],
                   saved=saved_file(args.output))
-    scene_bake = merge_parts(bpy.context, parts, log=log)
-    warn(scene_bake.problems + scene_bake.notes)
-    log(scene_bake.summary.line())
-    save_bake(scene_bake, args.output, args.report)
+    report = merge_parts(bpy.context, parts, log=log)
+    warn(report.problems + report.notes)
+    log(report.summary.line())
+    save_bake(report, args.output, args.report)
     return 0

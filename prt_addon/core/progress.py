@@ -130,8 +130,9 @@ class WrappingJob(Job):
 
 
 class JobSequence(Job):
-    """Jobs run one after another as one job: its progress weighs each by its share of the work. The sequence and
-    each of its jobs are timed from their first step, not from when they were made (a farm bake's scene is gathered
+    """Jobs run one after another as one job: its progress weighs each by its share of the work. A job that depends
+    on those before it is given as a function that makes it, called when its turn comes. The sequence and each of
+    its jobs are timed from their first step, not from when they were made (a farm bake's scene is gathered
     before its cluster has baked the parts it merges)."""
 
     def __init__(self, jobs: list, shares: list, label: str, clock=time.perf_counter):
@@ -143,6 +144,8 @@ class JobSequence(Job):
 
     def step(self, budget_s: float) -> bool:
         if self.current < len(self.jobs):
+            if not isinstance(self.jobs[self.current], Job):
+                self.jobs[self.current] = self.jobs[self.current]()
             job = self.jobs[self.current]
             if self.current == self._started:
                 if not self._started:
@@ -151,11 +154,12 @@ class JobSequence(Job):
                 self._started += 1
             if job.step(budget_s):
                 self.current += 1
-        running = self.jobs[self.current].progress.fraction if self.current < len(self.jobs) else 0.0
+        upcoming = self.jobs[self.current] if self.current < len(self.jobs) else None
+        running = upcoming.progress.fraction if isinstance(upcoming, Job) else 0.0
         self.progress.fraction = sum(self.shares[:self.current]) + (
-            self.shares[self.current] * running if self.current < len(self.jobs) else 0.0)
+            self.shares[self.current] * running if upcoming is not None else 0.0)
         return self.current == len(self.jobs)
 
     def cancel(self):
-        if self.current < len(self.jobs):
+        if self.current < len(self.jobs) and isinstance(self.jobs[self.current], Job):
             self.jobs[self.current].cancel()

@@ -5,9 +5,11 @@ import bpy
 from bpy.props import CollectionProperty, EnumProperty, PointerProperty, StringProperty
 
 from ..blender.checks import all_checks
+from ..blender.execute import local_executor
+from ..blender.plan import plan_bake
 from ..blender.registration import classes_and_properties
-from ..blender.scene_bake import SceneBake
-from ..core import checks
+from ..blender.request import read_request
+from ..core import checks, settings as spec
 from ..core.errors import InputError
 
 ICONS = {checks.ERROR: "CANCEL", checks.WARNING: "ERROR", checks.INFO: "INFO", checks.OK: "CHECKMARK"}
@@ -25,21 +27,23 @@ class PRT_PG_checklist(bpy.types.PropertyGroup):
 
 
 def checked_bake(context, receivers=None):
-    """The bake the panel's settings describe (of `receivers`, or the default ones), gathered but not started, and
-    every check on it, stored for the panel. The bake is None when it cannot start (the checklist then holds why)."""
+    """The plan of the bake the panel's settings describe (of `receivers`, or the default ones), the executor that
+    would bake it, and every check on them, stored for the panel; nothing is written and no ray of the bake is
+    cast. The plan is None when the bake cannot start (the checklist then holds why)."""
     settings = context.scene.prt_bake
+    executor = local_executor(spec.worker_count(settings.workers))
     try:
-        scene_bake = SceneBake(context, settings.to_settings(), receivers, workers=settings.workers)
+        plan = plan_bake(read_request(context, settings.to_settings(), receivers))
     except InputError as problem:
-        scene_bake, found = None, [checks.Check(checks.ERROR, "bake", str(problem))]
+        plan, found = None, [checks.Check(checks.ERROR, "bake", str(problem))]
     else:
-        found = all_checks(context, scene_bake, output=None, required=False)
+        found = all_checks(context, plan, executor, output=None, required=False)
     items = context.window_manager.prt_checks.items
     items.clear()
     for check in found:
         item = items.add()
         item.level, item.subject, item.text = check.level, check.subject, check.text
-    return scene_bake, found
+    return plan, executor, found
 
 
 class PRT_OT_check_bake(bpy.types.Operator):
@@ -52,7 +56,7 @@ class PRT_OT_check_bake(bpy.types.Operator):
         return context.mode == "OBJECT" and not context.window_manager.prt_bake_status.running
 
     def execute(self, context):
-        _, found = checked_bake(context)
+        _, _, found = checked_bake(context)
         errors = len(checks.errors(found))
         warnings = sum(check.level == checks.WARNING for check in found)
         self.report({"WARNING" if errors else "INFO"}, f"PRT checks: {errors} errors, {warnings} warnings")

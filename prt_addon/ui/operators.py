@@ -5,16 +5,17 @@ import bpy
 from bpy_extras.io_utils import ExportHelper
 
 from ..blender import geometry, gltf, storage
+from ..blender.scene_bake import SceneBake
 from ..core import checks
 from ..core.errors import InputError
 from ..core.progress import format_duration, old_objects_frozen
 from .checks import checked_bake
 
 
-def _report_outcome(operator, scene_bake):
-    for problem in scene_bake.problems + scene_bake.notes:
+def _report_outcome(operator, report):
+    for problem in report.problems + report.notes:
         operator.report({"WARNING"}, problem)
-    operator.report({"INFO"}, scene_bake.summary.line())
+    operator.report({"INFO"}, report.summary.line())
 
 
 class ModalJob:
@@ -122,16 +123,17 @@ class BakeJob(ModalJob):
         return context.mode == "OBJECT" and not status.running
 
     def checked_bake(self, context, receivers=None):
-        """The bake, once its checks pass: the panel lists them, warnings are reported, errors stop it."""
-        scene_bake, found = checked_bake(context, receivers)
+        """The bake as a job (blender.scene_bake), once the checks on its plan pass: the panel lists them,
+        warnings are reported, errors stop it."""
+        plan, executor, found = checked_bake(context, receivers)
         for check in found:
             if check.level == checks.WARNING:
                 self.report({"WARNING"}, f"{check.subject}: {check.text}")
         checks.stop_on_errors(found)
-        return scene_bake
+        return SceneBake.of_plan(plan, executor)
 
     def finish(self, context, scene_bake, summary):
-        _report_outcome(self, scene_bake)
+        _report_outcome(self, scene_bake.report())
         print(summary.line())
 
 

@@ -9,7 +9,7 @@ import time
 import numpy as np
 import pytest
 
-from prt_addon.core import bake, job, part_file, shards
+from prt_addon.core import bake, executors, job, part_file, shards
 from prt_addon.core.bake import BakeSettings, ChunkResult
 from prt_addon.core.errors import InputError
 from prt_addon.core.progress import Progress
@@ -129,12 +129,13 @@ def test_a_merges_rays_per_second_and_workers_are_its_shards():
     """A merge casts no ray: its rate is the rays ÷ the shards' seconds baking and its own (bounces), its workers
     the shards' in all; its time adds the shards' commands' seconds."""
     receivers = [bake.Receiver("Floor", np.zeros((300, 3)), np.tile([0.0, 0.0, 1.0], (300, 1)), 1)]
-    merge = job.TransferJob(receivers, None, BakeSettings(order=2, mode="unshadowed"), workers=1)
+    parts = []
+    merge = job.TransferJob(receivers, None, BakeSettings(order=2, mode="unshadowed"),
+                            executors.FromParts(lambda name: parts, time_s=30.0, rays_s=12.0, workers=6))
     now = [100.0]
     merge.progress = Progress("PRT bake", clock=lambda: now[0])  # the merge's own seconds, told by this clock
-    parts = [(index, ChunkResult(np.zeros((len(rows), 4)), np.zeros(len(rows)), np.full(len(rows), 64),
-                                 np.zeros(len(rows), bool))) for index, (_, rows) in enumerate(merge.chunks)]
-    merge.take_parts(parts, shards_time_s=30.0, shards_rays_s=12.0, shards_workers=6)
+    parts += [(index, ChunkResult(np.zeros((len(rows), 4)), np.zeros(len(rows)), np.full(len(rows), 64),
+                                  np.zeros(len(rows), bool))) for index, (_, rows) in enumerate(merge.chunks)]
     merge.run()
     now[0] = 103.0
     summary = merge.summary(merge.results())

@@ -1,0 +1,106 @@
+"""The first step of a bake: what it needs of the scene, read from Blender once, as plain values (dataclasses and
+numpy arrays; objects by name). The plan, the execution and the checks read this, never the scene, so objects may
+move while a modal bake runs; only storing writes, to the receivers named here.
+"""
+
+from dataclasses import dataclass, field
+
+from ..core import bake
+from ..core.errors import InputError
+from ..core.progress import old_objects_frozen
+from . import fingerprint, geometry, materials, texel_bake
+from .occluders import occluders_from_depsgraph
+
+
+@dataclass
+class ReceiverInput:
+    """One object to bake and store."""
+    name: str
+    surface: geometry.Surface          # its evaluated surface in world space, per shading point
+    vertices: int                      # its mesh's vertices
+    options: texel_bake.TexelOptions   # its storage choice
+    texels: texel_bake.TexelInput | None = None  # Storage Texel or Auto: its triangles and lightmap UV map
+    subsurface: tuple | None = None    # materials.subsurface_material's (weight, mean free path, albedo, ior)
+
+
+@dataclass
+class BakeRequest:
+    """A bake of these receivers under these settings, in a scene whose other visible meshes are `bouncers`
+    (interreflected bakes: they reflect light onto the receivers) and whose occluders begin with the receivers'
+    and bouncers' points, in that order."""
+    settings: bake.BakeSettings
+    receivers: list[ReceiverInput]
+    bouncers: list = field(default_factory=list)   # blender.geometry.Surface
+    occluders: bake.Occluders | None = None        # None: unshadowed, no rays
+    fingerprints: dict = field(default_factory=dict)  # receiver → part → digest (blender.fingerprint)
+    problems: list = field(default_factory=list)   # one sentence per object that will not be baked
+    notes: list = field(default_factory=list)      # baked, but the user should know
+    farm: bool = False                             # farm shards bake it (every receiver per vertex)
+
+    @property
+    def names(self) -> list[str]:
+        return [receiver.name for receiver in self.receivers]
+
+
+@old_objects_frozen()  # reading makes many lists for Blender and numpy, as a job's steps do
+def read_request(context, settings: bake.BakeSettings, object_names=None, storage_options=None,
+                 farm: bool = False) -> BakeRequest:
+    """The bake of `object_names` (else the selected meshes, else every visible mesh) as the scene is now.
+    storage_options: texel_bake.TexelOptions fields that override every receiver's own (the command line's).
+    `farm`: shards bake it and a merge stores it, so every receiver must be stored per vertex. Raises InputError,
+    naming the problem, where nothing can be baked."""
+    problems = settings.problems()
+    if problems:
+        raise InputError("; ".join(problems))
+    overrides = storage_options or {}
+    context.view_layer.update()  # objects linked by scripts join the view layer only on update
+    depsgraph = context.evaluated_depsgraph_get()
+    request = BakeRequest(settings, [], farm=farm)
+    bouncing = settings.mode == "interreflected"
+    objects, meshes = [], {}
+    for ob in geometry.receivers_from_selection(context, object_names):
+        try:
+            if ob.type == "MESH" and ob.data.name in meshes:
+                raise InputError(
+                    f"{ob.name!r} shares its mesh with {meshes[ob.data.name]!r}, and the bake depends on "
+                    f"where each object is; make it single-user (Object > Relations) to bake both")
+            surface = geometry.surface_from_object(ob, depsgraph, request.notes, albedo=bouncing)
+            meshes[ob.data.name] = ob.name
+        except InputError as problem:
+            request.problems.append(str(problem))
+            continue
+        objects.append(ob)
+        request.receivers.append(ReceiverInput(ob.name, surface, len(ob.data.vertices),
+                                               texel_bake.options_for(ob, overrides)))
+    if not request.receivers:
+        raise InputError("nothing to bake: " + ("; ".join(request.problems) or "no mesh objects"))
+    if farm:  # before the occluders are gathered
+        texel_bake.refuse_on_farm(objects, overrides)
+    request.fingerprints = fingerprint.fingerprints(depsgraph, objects, settings, storage_options)
+    if bouncing:  # every visible mesh reflects light onto the receivers, so its transfer is solved too
+        request.bouncers = _bouncing_surfaces(context, depsgraph, set(request.names), request.notes)
+    if settings.mode != "unshadowed":
+        solved = [receiver.surface for receiver in request.receivers] + request.bouncers
+        request.occluders, sources = occluders_from_depsgraph(depsgraph, solved)
+        if sources <= set(request.names):
+            request.notes.append("no visible mesh besides the receivers casts shadows; "
+                                 "each receiver is shadowed by the receivers only")
+    for ob, receiver in zip(objects, request.receivers):
+        if receiver.options.storage != "vertex":
+            receiver.texels = texel_bake.texel_input(ob, receiver.surface, depsgraph, receiver.options)
+        if settings.mode != "unshadowed":
+            receiver.subsurface = materials.subsurface_material(ob)
+    return request
+
+
+def _bouncing_surfaces(context, depsgraph, receiver_names, notes) -> list:
+    """The other visible meshes' surfaces, which only reflect light onto the receivers."""
+    found = []
+    for ob in geometry.visible_mesh_objects(context):
+        if ob.name in receiver_names:
+            continue
+        try:
+            found.append(geometry.surface_from_object(ob, depsgraph, notes, for_storage=False, albedo=True))
+        except InputError as problem:
+            notes.append(f"{problem}; it casts shadows but reflects no light")
+    return found
