@@ -1,5 +1,6 @@
-"""The checklist under the Bake button: the checks before any ray (blender.checks), run on demand by Check and by
-every bake, kept at window-manager level (never saved) for the panel to list."""
+"""The checklist under the Bake button: the checks before any ray of the bake (blender.checks, on its plan), run on
+demand by Check and by every bake, kept on the window manager (interface state, not the scene's data) for the
+panel to list."""
 
 import bpy
 from bpy.props import CollectionProperty, EnumProperty, PointerProperty, StringProperty

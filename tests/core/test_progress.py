@@ -42,6 +42,25 @@ def test_a_sequence_and_each_of_its_jobs_are_timed_from_their_first_step_and_wei
     assert sequence.progress.fraction == 1.0
 
 
+def test_a_job_given_as_a_function_is_made_when_its_turn_comes():
+    """A bake's later jobs depend on its earlier ones (Auto's probes decide what the bake is): the sequence makes
+    them when the jobs before them are done, times them from their first step, and cancels only what it made."""
+    clock = Clock()
+    first, made = Waiting(clock, 2), []
+
+    def second():
+        made.append(first.left)  # what was left of the first job when this one was made
+        return Waiting(clock, 1)
+    sequence = JobSequence([first, second], [1, 1], "both", clock)
+    assert not sequence.step(1.0) and made == []
+    sequence.cancel()  # the first job's turn: the second is not made to be cancelled
+    assert made == []
+    assert not sequence.step(1.0)  # the first job ends; the second is made at its first step
+    assert made == [] and sequence.progress.fraction == 0.5
+    assert sequence.step(1.0)
+    assert made == [0] and sequence.jobs[1].progress.elapsed == 1.0 and sequence.progress.fraction == 1.0
+
+
 class Node:
     """Something that can sit in a reference cycle and be watched."""
 
