@@ -4,9 +4,10 @@ corner (CORNER: some vertex is split by its corner normals) and per texel (TEXEL
 Baking, each receiver's layout (chosen by its plan) gives the points the bake solves (`receiver`), the texel lattice
 to refine where it has one (`grid`), whether the probes between vertices measure it (`between_vertices`) and whether
 its Subsurface Weight applies (`takes_subsurface`), the rows it stores (`stored_rows`), and writes the result
-(`write`), replacing any earlier bake of any layout (storage.remove_transfer). Reading back, `stored(mesh)` is the layout a mesh's bake has,
-and its `read`, `shade` and `display_source` are what the relighting and the display use. No other module asks
-which layout a bake has.
+(`write`), replacing any earlier bake of any layout (storage.remove_transfer). Reading back, `stored(mesh)` is the
+layout a mesh's bake has, and its `read`, `shade`, `display_source` and `describe` are what the relighting, the
+display and the Stored Bake panel use. Outside this module only the exports (glTF, `prt export`), whose formats
+differ per layout, ask which layout a bake has (texel_maps.is_texel_bake).
 """
 
 from dataclasses import dataclass
@@ -74,6 +75,11 @@ class PerVertex:
         """What the display material shows: the colour attribute (None), or a texel bake's (image, UV map)."""
         return None
 
+    @staticmethod
+    def describe(meta) -> str:
+        """What the Stored Bake panel says of the layout, beyond the bake's figures ("" where nothing)."""
+        return ""
+
 
 class PerCorner(PerVertex):
     """One row per shading point (the vertices, then the further corner normals of split vertices), attributes
@@ -139,6 +145,10 @@ class PerTexel:
     @staticmethod
     def display_source(mesh):
         return texel_maps.display_source(mesh)
+
+    @staticmethod
+    def describe(meta) -> str:
+        return f"Per texel: {meta['width']} × {meta['height']} in {meta['uv_map']!r}"
 
 
 def for_surface(surface) -> PerVertex:

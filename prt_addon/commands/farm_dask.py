@@ -2,10 +2,11 @@
 files merged here.
 
 The Dask client runs in a fork of this process (its threads must never be in a process that forks again), so that
-meanwhile this process gathers the scene, once: the merge takes the parts into that gathered bake. With `local:N`
-the LocalCluster's workers are threads of the client process, and each of their tasks asks this process for its
-shard: a fork of it, which has the whole bake gathered already (receivers, occluders, chunks, probes), bakes its
-share of the chunks in one process (the worker threads are the parallelism) and writes its part. On a cluster of
+meanwhile this process reads and plans the bake, once (blender.request, blender.plan): the merge stores the parts
+with that plan. With `local:N` the LocalCluster's workers are threads of the client process, and each of their
+tasks asks this process for its shard: a fork of it, which has the whole plan already (receivers, occluders, probes,
+and the ray tree), executes its share of the chunks in one process (the worker threads are the parallelism) and
+writes its part. On a cluster of
 its own each shard is a `prt bake FILE --shard K/N --workers 1` in a new process on its worker (as a farm task runs
 it; the bpy module is not thread-safe), its part file's bytes sent back.
 

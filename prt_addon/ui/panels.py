@@ -3,7 +3,7 @@ active object's stored bake. The Lights and Display panels are in lights.py, Val
 
 import bpy
 
-from ..blender import storage
+from ..blender import layouts, storage
 from .checks import draw_checklist
 from .presets import draw_presets
 from .stale import draw_status
@@ -112,8 +112,9 @@ class PRT_PT_bake_info(ActiveMeshPanel, bpy.types.Panel):
         if "est_interp_rms_rel_error" in meta:
             column.label(text=f"Between vertices RMS {meta['est_interp_rms_rel_error']:.4f}, "
                               f"max {meta['est_interp_max_rel_error']:.4f}")
-        if meta.get("storage") == "TEXEL":
-            column.label(text=f"Per texel: {meta['width']} × {meta['height']} in {meta['uv_map']!r}")
+        described = layouts.stored(mesh).describe(meta)
+        if described:
+            column.label(text=described)
         column.label(text=f"Baked {meta['date']}")
 
 
