@@ -18,7 +18,7 @@ import numpy as np
 
 from ..core import executors, interpolation, job, lobes, texel_gather, texel_refine
 from ..core.errors import InputError
-from ..core.progress import Job, JobSequence
+from ..core.progress import JobSequence, WrappingJob
 from . import texel_plan
 from .plan import BakePlan, albedo_channels
 
@@ -94,7 +94,7 @@ def first_job(plan: BakePlan, executor) -> job.TransferJob:
     return main_job(plan, plan.layouts(), executor).first
 
 
-class Execution(Job):
+class Execution(WrappingJob):
     """The plan's bake: Auto's probes, the bake, the probes between vertices, one after another."""
 
     def __init__(self, plan: BakePlan, executor):
@@ -121,15 +121,8 @@ class Execution(Job):
         shares.append(max(1, self.between.total_vertices))
         self.sequence = JobSequence(stages, shares, "PRT bake")
 
-    @property
-    def progress(self):
-        return self.sequence.progress
-
-    def step(self, budget_s: float) -> bool:
-        return self.sequence.step(budget_s)
-
-    def cancel(self):
-        self.sequence.cancel()
+    def inner(self) -> JobSequence:
+        return self.sequence
 
     def _main(self) -> texel_refine.RefiningJob:
         """The bake's job over the receivers whose layout is chosen."""
