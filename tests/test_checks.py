@@ -114,8 +114,8 @@ def test_the_stored_estimate_is_exactly_the_attributes_a_bake_writes(empty_scene
     cube.data.shade_flat()  # its corners' normals differ: stored per face corner, with each corner's point
     scene_bake = gathered(["Floor", "Cube"])
     first = first_job(scene_bake.plan, scene_bake.executor)
-    estimated = checks.stored_bytes(scene_checks.bake_size(scene_bake.plan, first, checks.TimedSample(0, 0, 0, 0.0, 0.0),
-                                                           False))
+    nothing_sampled = checks.TimedSample(0, 0, 0, 0.0, 0.0)
+    estimated = checks.stored_bytes(scene_checks.bake_size(scene_bake.plan, first, nothing_sampled, False))
     scene_bake.run(log=lambda line: None)
     written = sum(len(attribute.data) * ATTRIBUTE_BYTES[attribute.data_type]
                   for ob in (floor, cube) for attribute in ob.data.attributes if attribute.name.startswith("_prt_"))

@@ -6,8 +6,8 @@ and Dask:
     results = execute(plan, executor).run()             # blender.execute: a job (progress, time left, cancel)
     report = store(plan, results)                       # blender.store: the only step that writes
 
-SceneBake is those steps as one job, for a driver that steps it (the modal operator) or runs it. Nothing is written until every receiver is baked: a cancelled or
-failed bake leaves the previous data as it was.
+SceneBake is those steps as one job, for a driver that steps it (the modal operator) or runs it. Nothing is written
+until every receiver is baked: a cancelled or failed bake leaves the previous data as it was.
 """
 
 import bpy

@@ -7,9 +7,9 @@ how it is run:
 - FarmShard: one shard's share of the chunks, baked by a local executor, its results kept for a part file;
 - FromParts: every chunk's result read from farm part files (the merge): no ray is cast.
 
-An executor's `run(job, chunks, store)` is a generator: it yields after each bounded piece of work (the job's
-`step` keeps to its time budget so), hands each chunk's result to store(chunk index, ChunkResult) and counts the
-job's progress (job.done_vertices, job.rays). Every executor bakes `estimator.bake_chunk` on the same fixed chunks, so the
+An executor's `run(job, chunks, store)` is a generator: it yields after each bounded piece of work (the job's `step`
+keeps to its time budget so), hands each chunk's result to store(chunk index, ChunkResult) and counts the job's
+progress (job.done_vertices, job.rays). Every executor bakes `estimator.bake_chunk` on the same fixed chunks, so the
 results are bit-identical whichever runs them.
 """
 

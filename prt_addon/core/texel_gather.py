@@ -21,8 +21,8 @@ from .progress import Job
 
 
 class GatheringJob(Job):
-    """A gather-only TransferJob over texel receivers (its rays record their hits), then the gather from the
-    solved vertices' total transfer `solved` (S, C, n²) with their albedo (S, C)."""
+    """A TransferJob over texel receivers without albedo (its rays record their hits, it bounces nothing), then the
+    gather from the solved vertices' total transfer `solved` (S, C, n²) with their albedo (S, C)."""
 
     def __init__(self, inner, solved: np.ndarray, albedo: np.ndarray):
         self.inner = inner
