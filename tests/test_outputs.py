@@ -173,7 +173,7 @@ def no_work(monkeypatch):
     def work(*args, **kwargs):
         raise WorkStarted("the work started")
     for module, name in ((validate, "Validation"), (validate, "validate_image"), (lights, "scene_fidelity"),
-                         (bake_command, "SceneBake"), (bake_command, "bake_shard"), (merge, "merge_parts"),
+                         (bake_command, "read_request"), (bake_command, "bake_shard"), (merge, "merge_parts"),
                          (storage, "read_transfer"), (gltf, "export"), (relight, "Relighter"), (relight, "render")):
         monkeypatch.setattr(module, name, work)
 
