@@ -326,6 +326,22 @@ def test_on_a_full_disk_blenders_own_writes_leave_the_previous_files(scene, tiny
     assert listing(tiny_disk) == ["baked.blend", "render.png"]
 
 
+@pytest.mark.parametrize("compress", [True, False])
+def test_a_blend_file_is_whole_only_to_its_last_byte(tmp_path, compress):
+    """What finds a .blend that Blender cut short without a word: the file as saved is whole, without its last
+    byte or its second half it is not."""
+    bpy.ops.wm.read_homefile(use_empty=True)
+    bpy.ops.mesh.primitive_uv_sphere_add()
+    whole = tmp_path / "whole.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(whole), copy=True, compress=compress)
+    data = whole.read_bytes()
+    assert outputs.blend_is_whole(str(whole))
+    for cut in (data[:-1], data[: len(data) // 2], b""):
+        short = tmp_path / "short.blend"
+        short.write_bytes(cut)
+        assert not outputs.blend_is_whole(str(short))
+
+
 def test_a_render_is_written_in_its_suffixs_format_at_exactly_the_path_printed(scene, tmp_path, capfd):
     """Row 7: `--render out.jpg` wrote out.png."""
     out = tmp_path / "renders" / "out.jpg"

@@ -27,6 +27,9 @@ TEMPORARY_PREFIX = ".prt-"  # no '#': Blender reads a run of them in a path it w
 TEMPORARY_TAG = ".partial"
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 JPEG_START, JPEG_END = b"\xff\xd8", b"\xff\xd9"
+ZSTD_MAGIC = b"\x28\xb5\x2f\xfd"         # a compressed .blend: zstd frames,
+SEEKABLE_FOOTER = b"\xb1\xea\x92\x8f"    # then the seek table, whose footer ends the file
+BLEND_HEADER, BLEND_END = b"BLENDER", b"ENDB"  # an uncompressed .blend: blocks up to the ENDB block
 
 
 def same_file(first: str, second: str) -> bool:
@@ -154,6 +157,21 @@ def image_is_whole(path: str) -> bool:
     if data.startswith(JPEG_START):
         return data.endswith(JPEG_END)
     return bool(data)
+
+
+def blend_is_whole(path: str) -> bool:
+    """Whether a .blend file ends as Blender ends one: compressed, with the seek table's footer; uncompressed, with
+    the ENDB block's header (24 bytes before Blender 5, 32 since). Blender 5.2 does not report a full disk when
+    saving: it leaves the file cut short."""
+    with open(path, "rb") as handle:
+        start = handle.read(len(BLEND_HEADER))
+        handle.seek(0, os.SEEK_END)
+        size = handle.tell()
+        handle.seek(max(0, size - 32))
+        tail = handle.read()
+    if start.startswith(ZSTD_MAGIC):
+        return tail.endswith(SEEKABLE_FOOTER)
+    return start == BLEND_HEADER and BLEND_END in (tail[-32:-28], tail[-24:-20])
 
 
 def write_json(path: str, data):
