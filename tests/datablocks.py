@@ -1,11 +1,13 @@
 """Every datablock's data in the open file, as values to compare: a step that must leave the file as it was is
-checked by comparing them before and after. A byte comparison of saved files cannot tell: Blender writes each
-array's memory address, and reading some data through Python (a UV map's values) may move it without changing it.
+checked by comparing them before and after. A byte comparison of saved files cannot tell: Blender 5 writes an
+unchanged session differently from one save to the next (the place of an array it shares with the evaluated scene:
+2 of 14 pairs of saves in a row differed), and reading data through Python may unshare an array without changing
+it.
 
 Each datablock's properties are read through RNA (nested structs and collections a few levels deep, at most 64
 items of a collection), its custom properties whole, a mesh's attributes (positions, UV maps, the bake's, ...) and an
 image's pixels as digests of their values. The interface's own state (window managers, screens, workspaces) is
-left out: the sidebar's checklist lives on the window manager."""
+left out."""
 
 import hashlib
 import warnings

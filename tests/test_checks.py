@@ -13,10 +13,9 @@ from conftest import run_cli
 from prt_addon.blender import checks as scene_checks
 from prt_addon.blender.execute import first_job
 from prt_addon.blender.scene_bake import SceneBake
-from prt_addon.core import bake, checks
+from prt_addon.core import bake, checks, engines, estimator
 from prt_addon.core.bake import BakeSettings
 from test_bake_blender import add_mesh, bake as bake_in_the_panel, box, grid, select, transfer_of
-from test_bake_core import disc
 
 ATTRIBUTE_BYTES = {"FLOAT_VECTOR": 12, "FLOAT": 4, "INT": 4}
 
@@ -114,8 +113,7 @@ def test_the_stored_estimate_is_exactly_the_attributes_a_bake_writes(empty_scene
     cube.data.shade_flat()  # its corners' normals differ: stored per face corner, with each corner's point
     scene_bake = gathered(["Floor", "Cube"])
     first = first_job(scene_bake.plan, scene_bake.executor)
-    nothing_sampled = checks.TimedSample(0, 0, 0, 0.0, 0.0)
-    estimated = checks.stored_bytes(scene_checks.bake_size(scene_bake.plan, first, nothing_sampled, False))
+    estimated = checks.stored_bytes(scene_checks.bake_size(scene_bake.plan, first, False))
     scene_bake.run(log=lambda line: None)
     written = sum(len(attribute.data) * ATTRIBUTE_BYTES[attribute.data_type]
                   for ob in (floor, cube) for attribute in ob.data.attributes if attribute.name.startswith("_prt_"))
@@ -123,27 +121,33 @@ def test_the_stored_estimate_is_exactly_the_attributes_a_bake_writes(empty_scene
     assert estimated == written
 
 
-def test_the_timed_sample_bakes_points_spread_over_every_receiver_with_the_real_caster():
-    occluders = disc(1.0, 1.0, segments=64)
-    receivers = [bake.Receiver(name, np.column_stack([np.linspace(-2, 2, 300), np.zeros(300), np.zeros(300)]),
-                               np.tile([0.0, 0.0, 1.0], (300, 1)), key) for key, name in enumerate("ab")]
-    settings = BakeSettings(samples=64)
-    sample = checks.timed_sample(receivers, occluders, settings)
-    assert sample.points == checks.SAMPLE_RAYS // 64
-    assert 0 < sample.rays <= sample.points * 64 and sample.seconds > 0  # points far from the disc cast no ray
-    assert sample.hits == 0  # hits are recorded for interreflections only
-    facing_down = bake.Occluders(occluders.vertices, occluders.triangles[:, ::-1].copy(), occluders.hull)
-    bounced = checks.timed_sample(receivers, facing_down, BakeSettings(samples=64, mode="interreflected"))
-    assert bounced.hits > 0  # blocked rays land on the disc's front, and are recorded to bounce
-    assert checks.timed_sample(receivers, occluders, BakeSettings(mode="unshadowed")).points == 0
+def test_the_time_estimate_is_the_tree_the_workers_start_and_the_rays_shared_at_the_engines_rate():
+    rate = engines.RATES["bvhtree"]
+    rays, triangles = 4_000_000, 600_000
+    assert checks.estimated_seconds(rays, triangles, "bvhtree", 1) == pytest.approx(
+        triangles / rate.triangles_per_s + rays / rate.rays_per_s)
+    assert checks.estimated_seconds(rays, triangles, "bvhtree", 4, start_s=1.0) == pytest.approx(
+        triangles / rate.triangles_per_s + 1.0 + rays / rate.rays_per_s / 4)
+    assert checks.estimated_seconds(0, triangles, "bvhtree", 1) == 0.0  # nothing to cast: no tree either
+    settings = BakeSettings(target_error=0.01, samples=256, max_samples=4096)
+    text = checks.time_check(rays, 20.5, "bvhtree", settings, 1).text
+    assert "about 20.5s" in text and "4000000 rays" in text and "with bvhtree" in text and "up to 16× the rays" in text
+    assert checks.time_check(0, 0.0, None, settings, 1).level == checks.OK
 
 
-def test_the_time_estimate_scales_the_sample_by_points_and_processes():
-    sample = checks.TimedSample(points=16, rays=4096, hits=0, seconds=0.2, tree_s=0.5)
-    assert checks.estimated_seconds(sample, 1600, 1) == pytest.approx(0.5 + 20.0)
-    assert checks.estimated_seconds(sample, 1600, 4, start_s=1.0) == pytest.approx(0.5 + 1.0 + 5.0)
-    text = checks.time_check(sample, 20.5, BakeSettings(target_error=0.01, samples=256, max_samples=4096), 1).text
-    assert "about 20.5s" in text and "up to 16× the rays" in text
+def test_the_checks_size_a_bake_from_its_plan_without_casting_a_ray(empty_scene, monkeypatch):
+    """The rays are the first round's (points × samples); an interreflected bake counts a recorded hit per ray."""
+    grid("Floor")
+    box("Cube")
+    monkeypatch.setattr(estimator, "bake_chunk", lambda *args: pytest.fail("a ray was cast"))
+    for mode, hits in (("shadowed", 0.0), ("interreflected", checks.HITS_PER_RAY)):
+        scene_bake = gathered(["Floor", "Cube"], mode=mode)
+        first = first_job(scene_bake.plan, scene_bake.executor)
+        size = scene_checks.bake_size(scene_bake.plan, first, False)
+        assert size.rays == first.total_vertices * scene_bake.plan.settings.samples > 0
+        assert size.hits_per_ray == hits
+    unshadowed = gathered(["Floor", "Cube"], mode="unshadowed")
+    assert scene_checks.bake_size(unshadowed.plan, first_job(unshadowed.plan, unshadowed.executor), False).rays == 0
 
 
 # -- the objects -------------------------------------------------------------------------------------------------
@@ -197,30 +201,35 @@ def test_the_bake_operator_stops_on_an_error_and_keeps_the_earlier_bake(empty_sc
     bake_in_the_panel()
     before, meta_before = transfer_of(cube)
     installed = importlib.import_module(f"{addon}.prt_addon.core.checks")  # the one the operator runs
-    baked, real = [], installed.estimator.bake_chunk
-    monkeypatch.setattr(installed.estimator, "bake_chunk", lambda caster, receiver, *rest: (
+    found_estimator = importlib.import_module(f"{addon}.prt_addon.core.estimator")
+    baked, real = [], found_estimator.bake_chunk
+    monkeypatch.setattr(found_estimator, "bake_chunk", lambda caster, receiver, *rest: (
         baked.append(receiver.name), real(caster, receiver, *rest))[1])
     monkeypatch.setattr(installed, "available_memory", lambda: 1 << 20)  # no memory to spare
     with pytest.raises(RuntimeError, match="memory: the bake needs about .* more than the 1.0 MB available"):
         bake_in_the_panel(order=6)
-    assert set(baked) == {"timed sample"}  # the checks' own few rays, and not one chunk of the bake
+    assert baked == []  # the checks cast no ray
     after, meta_after = transfer_of(cube)
     np.testing.assert_array_equal(before, after)
     assert meta_after == meta_before
-    levels = {item.subject: item.level for item in bpy.context.window_manager.prt_checks.items}
+    checklist = importlib.import_module(f"{addon}.prt_addon.ui.checks").last_checklist()
+    levels = {check.subject: check.level for check in checklist}
     assert levels["memory"] == checks.ERROR and levels["output"] == checks.INFO  # the panel lists why
     monkeypatch.undo()
     assert bake_in_the_panel(order=6) == {"FINISHED"} and transfer_of(cube)[1]["order"] == 6  # with memory: bakes
 
 
-def test_the_check_button_lists_every_finding_in_the_panel(empty_scene):
+def test_the_check_button_lists_every_finding_in_the_panel_until_another_file_is_opened(empty_scene, addon):
     grid("Floor")
     cube = box("Cube")
     cube.scale = (1.0, -2.0, 1.0)
     assert bpy.ops.prt.check_bake() == {"FINISHED"}
-    items = bpy.context.window_manager.prt_checks.items
+    panel = importlib.import_module(f"{addon}.prt_addon.ui.checks")
+    items = panel.last_checklist()
     assert [item.subject for item in items][:4] == ["output", "workers", "memory", "time"]
     assert any(item.subject == "'Cube'" and "negative scale (1, -2, 1)" in item.text for item in items)
+    bpy.ops.wm.read_homefile(use_empty=True)
+    assert panel.last_checklist() == []  # it described the objects of the file closed
 
 
 def test_the_panel_draws_the_checklist_under_the_bake_button(empty_scene):

@@ -72,7 +72,8 @@ def test_disable_enable_leaves_nothing_behind(addon, cycle):
     assert hasattr(bpy.types, "PRT_OT_bake")
     assert bpy.context.scene.prt_bake.order == 4
     assert _our_handlers() == {"depsgraph_update_post": ["on_depsgraph_update"],
-                               "frame_change_post": ["on_frame_change"], "load_post": ["on_load_post"]}
+                               "frame_change_post": ["on_frame_change"],
+                               "load_post": ["on_load_post", "forget_checklist"]}
     ours = [f for handlers in (bpy.app.handlers.depsgraph_update_post, bpy.app.handlers.frame_change_post)
             for f in handlers if f.__module__.startswith(ADDON_MODULE)]
     assert all(hasattr(f, "_bpy_persistent") for f in ours)  # kept when another file is loaded

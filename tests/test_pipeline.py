@@ -68,10 +68,10 @@ def test_the_check_button_writes_nothing_and_casts_no_ray_of_the_bake(empty_scen
     monkeypatch.setattr(installed, "bake_chunk", lambda caster, receiver, *rest: (
         baked.append(receiver.name), real(caster, receiver, *rest))[1])
     assert bpy.ops.prt.check_bake() == {"FINISHED"}
-    assert baked == ["timed sample"]  # the time check's few thousand rays, no chunk of the bake or of Auto's probes
+    assert baked == []  # no chunk of the bake or of Auto's probes, and no sample to time
     assert datablocks() == before
-    checklist = bpy.context.window_manager.prt_checks.items  # the interface's, for the panel
-    assert [item.subject for item in checklist][:4] == ["output", "workers", "memory", "time"]
+    checklist = importlib.import_module(f"{addon}.prt_addon.ui.checks").last_checklist()  # for the panel
+    assert [check.subject for check in checklist][:4] == ["output", "workers", "memory", "time"]
 
 
 def test_storing_adds_the_lightmap_uv_map_the_plan_packed(empty_scene):

@@ -1,7 +1,7 @@
 """Checks before any ray of the bake, on its plan (blender.plan): where the bake will be saved, what it will cost
-(core.checks grades memory and time from the plan and a timed sample of it), and what is wrong with its objects.
-The bake operator, the panel's Check button and `prt bake` all run these, so they find the same things; they write
-nothing."""
+(core.checks grades memory and time from the plan's sizes), and what is wrong with its objects. The bake operator,
+the panel's Check button and `prt bake` all run these, so they find the same things; they write nothing and cast no
+ray."""
 
 import os
 import tempfile
@@ -33,17 +33,19 @@ def all_checks(context, plan, executor, output: str | None, required: bool) -> l
 def scene_checks(context, plan, executor) -> list[Check]:
     """Workers, memory, time, then each object's problems, then what the plan found (objects not baked, notes), for
     the plan (blender.plan) baked by `executor` (core.executors). The bake's first job is made to size it, not run;
-    the time is estimated from a timed sample of a few thousand rays (core.checks.timed_sample), which writes
-    nothing."""
+    the time is estimated from its rays at the ray engine's typical rate (core.engines.RATES)."""
     job, settings = first_job(plan, executor), plan.settings
     processes = job.processes()
     spawned = processes > 1 and executor.spawned
     parallel = min(processes, os.cpu_count() or 1)
-    sample = checks.timed_sample(job.receivers, job.occluders, settings)
-    seconds = checks.estimated_seconds(sample, job.total_vertices, parallel, executor.start_s if spawned else 0.0)
+    size = bake_size(plan, job, spawned)
+    occluders = job.occluders
+    engine = occluders.engine if occluders is not None else None
+    seconds = checks.estimated_seconds(size.rays, size.occluder_triangles, engine, parallel,
+                                       executor.start_s if spawned else 0.0)
     found = [checks.workers_check(processes, tempfile.gettempdir()),
-             checks.memory_check(bake_size(plan, job, sample, spawned), checks.available_memory()),
-             checks.time_check(sample, seconds, settings, parallel)]
+             checks.memory_check(size, checks.available_memory()),
+             checks.time_check(size.rays, seconds, engine, settings, parallel)]
     casts_rays = settings.mode != "unshadowed"
     receivers = [bpy.data.objects[(name, None)] for name in plan.names]
     others = ([ob for ob in geometry.visible_mesh_objects(context) if ob not in receivers] if casts_rays else [])
@@ -54,11 +56,12 @@ def scene_checks(context, plan, executor) -> list[Check]:
     return found
 
 
-def bake_size(plan, job, sample: checks.TimedSample, spawned: bool) -> checks.BakeSize:
+def bake_size(plan, job, spawned: bool) -> checks.BakeSize:
     """What the plan's bake holds, `job` its first job (blender.execute.first_job)."""
     layouts = plan.layouts()
     split = [len(layout.corner_points) for layout in layouts if layout.corner_points is not None]
-    occluders = job.occluders
+    occluders, settings = job.occluders, plan.settings
+    casts = occluders is not None and settings.mode != "unshadowed" and len(occluders.triangles) > 0
     return checks.BakeSize(
         points=job.total_vertices,
         stored_rows=sum(layout.stored_rows() for layout in layouts),
@@ -67,8 +70,8 @@ def bake_size(plan, job, sample: checks.TimedSample, spawned: bool) -> checks.Ba
         occluder_triangles=len(occluders.triangles) if occluders else 0,
         order=plan.settings.order,
         channels=job.albedo[0].shape[1] if job.albedo else 1,
-        rays=job.total_vertices * plan.settings.samples if occluders else 0,
-        hits_per_ray=sample.hits / sample.rays if sample.rays else 0.0,
+        rays=job.total_vertices * settings.samples if casts else 0,
+        hits_per_ray=checks.HITS_PER_RAY if casts and settings.mode == "interreflected" else 0.0,
         processes=job.processes(), spawned=spawned)
 
 

@@ -1,16 +1,13 @@
 """Checks before any ray: findings graded error, warning, info or ok, what a bake will cost in memory and time,
 and whether a path can be written. Errors stop a bake before work is spent; the rest is listed.
 
-Only arithmetic, the operating system's figures and a short timed sample of the bake itself; what is gathered from
+Only arithmetic and the operating system's figures: no ray is cast and nothing written. What is gathered from
 Blender's data is blender/checks.py's."""
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 import os
-import time
 
-import numpy as np
-
-from . import bake, estimator, outputs, ray_caster
+from . import bake, engines, outputs
 from .errors import InputError
 from .progress import format_duration
 
@@ -25,10 +22,10 @@ PROCESS_BYTES = 64 << 20             # a process's chunk at work: 32 MB of basis
 SPAWNED_BYTES = 256 << 20            # a spawned worker itself: Blender, or Python with bpy (257 MB measured)
 HIT_BYTES = 48 + 170                 # a recorded hit (vertex, triangle, barycentric, weight) and its share of the
 #                                      bounce operator while it is built (corners, rows, columns, sorting keys)
+HITS_PER_RAY = 1.0                   # an interreflected ray records its first hit, if any: counted as hitting,
+#                                      since only casting the rays would tell how many miss
 WARN_FRACTION = 0.8                  # of the available memory: beyond it the machine may start to swap
 
-SAMPLE_RAYS = 4096                   # rays in the timed sample
-SAMPLE_POINTS = (4, 128)             # the fewest and most points it takes them from
 
 
 @dataclass(frozen=True)
@@ -88,7 +85,7 @@ class BakeSize:
     order: int
     channels: int             # 1 grey, 3 coloured (interreflected bakes over coloured albedo)
     rays: int                 # the first round's rays: points × samples (0 without rays)
-    hits_per_ray: float       # interreflected: recorded hits per ray (from the timed sample), else 0
+    hits_per_ray: float       # recorded hits per ray: interreflected, at most one (HITS_PER_RAY), else 0
     processes: int            # processes that cast rays
     spawned: bool             # spawned workers load their own copy of the job
 
@@ -153,56 +150,22 @@ def format_bytes(count: int) -> str:
 
 
 # -- time -----------------------------------------------------------------------------------------------------------
-@dataclass(frozen=True)
-class TimedSample:
-    """A few of the bake's points baked for real, with its settings, on its occluders."""
-    points: int
-    rays: int
-    hits: int         # recorded hits (interreflected)
-    seconds: float    # baking the sample
-    tree_s: float     # building the ray tree, which the bake does once
-
-
-def timed_sample(receivers, occluders, settings: bake.BakeSettings, rays: int = SAMPLE_RAYS) -> TimedSample:
-    """Bakes about `rays` rays' worth of points spread evenly over all receivers (the first round only, as the
-    bake starts) with the real ray caster on the real occluders, and times it."""
-    if settings.mode == "unshadowed" or occluders is None or not len(occluders.triangles):
-        return TimedSample(0, 0, 0, 0.0, 0.0)
-    start = time.perf_counter()
-    caster = ray_caster.RayCaster(occluders)
-    tree_s = time.perf_counter() - start
-    positions, normals, inward = (np.concatenate([getattr(r, name) if getattr(r, name) is not None else
-                                                  np.zeros_like(r.positions) for r in receivers])
-                                  for name in ("positions", "normals", "inward"))
-    count = int(np.clip(rays // settings.samples, *SAMPLE_POINTS))
-    chosen = np.unique(np.linspace(0, len(positions) - 1, count).astype(np.int64))
-    probe = bake.Receiver("timed sample", positions[chosen], normals[chosen], 0, inward[chosen])
-    work = estimator.bake_chunk(caster, probe, np.arange(len(chosen)), replace(settings, target_error=0.0))
-    cast, start = 0, time.perf_counter()
-    while True:
-        try:
-            cast += next(work)
-        except StopIteration as finished:
-            result = finished.value
-            break
-    seconds = time.perf_counter() - start
-    hits = len(result.records.vertex) if result.records is not None else 0
-    return TimedSample(len(chosen), cast, hits, seconds, tree_s)
-
-
-def estimated_seconds(sample: TimedSample, points: int, processes: int, start_s: float = 0.0) -> float:
-    """The first round's time: the sample's time per point over every point, shared by the processes, plus the
-    ray tree and the workers' start."""
-    if not sample.points:
+def estimated_seconds(rays: int, triangles: int, engine: str, processes: int, start_s: float = 0.0) -> float:
+    """The first round's time at the engine's typical rates (core.engines.RATES): its ray tree over the triangles,
+    built once, the workers' start, and the rays shared by the processes."""
+    if not rays:
         return 0.0
-    return sample.tree_s + start_s + sample.seconds / sample.points * points / max(1, processes)
+    rate = engines.RATES[engine]
+    return triangles / rate.triangles_per_s + start_s + rays / rate.rays_per_s / max(1, processes)
 
 
-def time_check(sample: TimedSample, seconds: float, settings: bake.BakeSettings, processes: int) -> Check:
-    if not sample.points:
+def time_check(rays: int, seconds: float, engine: str, settings: bake.BakeSettings, processes: int) -> Check:
+    """The first round's time, estimated from its rays (estimated_seconds), and what may add to it."""
+    if not rays:
         return Check(OK, "time", "no rays to cast: the transfer is exact in closed form")
     said = (f"about {format_duration(seconds)} with {processes} process{'es' if processes > 1 else ''} "
-            f"(from {sample.rays} rays in {1000 * sample.seconds:.0f} ms)")
+            f"({rays} rays at a typical {engines.RATES[engine].rays_per_s / 1e3:.0f} k rays/s a process with "
+            f"{engine}; the bake's report gives this machine's rate)")
     if settings.target_error > 0:
         said += f"; the target error may add rounds, up to {settings.max_samples // settings.samples}× the rays"
     if settings.mode == "interreflected":

@@ -1,30 +1,28 @@
 """The checklist under the Bake button: the checks before any ray of the bake (blender.checks, on its plan), run on
-demand by Check and by every bake, kept on the window manager (interface state, not the scene's data) for the
-panel to list."""
+demand by Check and by every bake, kept in this session's memory for the panel to list. It is the interface's state
+of the moment: never saved in the file (Check writes nothing), and cleared when another file is opened, whose
+objects it does not describe."""
 
 import bpy
-from bpy.props import CollectionProperty, EnumProperty, PointerProperty, StringProperty
 
 from ..blender.checks import all_checks
 from ..blender.execute import local_executor
 from ..blender.plan import plan_bake
-from ..blender.registration import classes_and_properties
 from ..blender.request import read_request
 from ..core import checks, settings as spec
 from ..core.errors import InputError
 
 ICONS = {checks.ERROR: "CANCEL", checks.WARNING: "ERROR", checks.INFO: "INFO", checks.OK: "CHECKMARK"}
-LEVEL_ITEMS = [(level, level.capitalize(), "How serious the finding is") for level in checks.LEVELS]
+_checklist: list[checks.Check] = []  # the last checks, for the panel
 
 
-class PRT_PG_check(bpy.types.PropertyGroup):
-    level: EnumProperty(items=LEVEL_ITEMS)
-    subject: StringProperty()
-    text: StringProperty()
+def last_checklist() -> list[checks.Check]:
+    return list(_checklist)
 
 
-class PRT_PG_checklist(bpy.types.PropertyGroup):
-    items: CollectionProperty(type=PRT_PG_check)
+@bpy.app.handlers.persistent
+def forget_checklist(*args):
+    _checklist.clear()
 
 
 def checked_bake(context, receivers=None):
@@ -39,11 +37,7 @@ def checked_bake(context, receivers=None):
         plan, found = None, [checks.Check(checks.ERROR, "bake", str(problem))]
     else:
         found = all_checks(context, plan, executor, output=None, required=False)
-    items = context.window_manager.prt_checks.items
-    items.clear()
-    for check in found:
-        item = items.add()
-        item.level, item.subject, item.text = check.level, check.subject, check.text
+    _checklist[:] = found
     return plan, executor, found
 
 
@@ -68,12 +62,20 @@ def draw_checklist(layout, context):
     """The Check button and the last checklist, one line per finding."""
     layout.operator("prt.check_bake", icon="VIEWZOOM")
     column = layout.column(align=True)
-    for item in context.window_manager.prt_checks.items:
-        column.label(text=f"{item.subject}: {item.text}", icon=ICONS[item.level])
+    for check in _checklist:
+        column.label(text=f"{check.subject}: {check.text}", icon=ICONS[check.level])
 
 
-classes = (PRT_PG_check, PRT_PG_checklist, PRT_OT_check_bake)
+_register_classes, _unregister_classes = bpy.utils.register_classes_factory((PRT_OT_check_bake,))
 
-register, unregister = classes_and_properties(classes, [
-    (bpy.types.WindowManager, "prt_checks", PointerProperty(type=PRT_PG_checklist)),
-])
+
+def register():
+    _register_classes()
+    bpy.app.handlers.load_post.append(forget_checklist)
+
+
+def unregister():
+    if forget_checklist in bpy.app.handlers.load_post:
+        bpy.app.handlers.load_post.remove(forget_checklist)
+    _checklist.clear()
+    _unregister_classes()
