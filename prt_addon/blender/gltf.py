@@ -18,9 +18,9 @@ import os
 import bpy
 import numpy as np
 
-from ..core import glb, gltf_pack, lights as core_lights, outputs, shading, texels
+from ..core import glb, gltf_pack, lights as core_lights, outputs, shading
 from ..core.errors import InputError
-from . import display, materials, storage, texel_maps
+from . import display, layouts, materials, storage
 from .lights import scene_lights
 
 COPY_PREFIX = "PRT glTF "  # names of the temporary copies; taken off again in the file
@@ -37,21 +37,21 @@ def export(scene, path: str, profile_name: str) -> dict:
     profile = gltf_pack.PROFILES.get(profile_name)
     if profile is None:
         raise InputError(f"unknown profile {profile_name!r}: expected one of {', '.join(gltf_pack.PROFILES)}")
-    baked = [(ob, *_read_bake(ob.data)) for ob in storage.baked_objects(scene.objects)]
+    baked = [(ob, layouts.stored(ob.data).gltf(ob, profile)) for ob in storage.baked_objects(scene.objects)]
     if not baked:
         raise InputError("no visible mesh has a PRT bake to export")
-    packs = {ob.name: _pack(ob, transfer, meta, planes, profile) for ob, transfer, meta, _, planes in baked}
+    packs = {ob.name: bake.packed for ob, bake in baked}
     shining, window, light_source = _lights(scene)
-    orders = {meta["order"] for _, _, meta, _, _ in baked}
+    orders = {bake.meta["order"] for _, bake in baked}
     cache = core_lights.LightCache()
     totals = cache.totals(shining, orders, window)
     top_order = max(orders)
     with outputs.replacing(path) as written:  # the exporter's file and the extras added to it: whole or nothing
         with _export_scene(scene) as temporary:
-            for ob, transfer, meta, corner_points, _ in baked:
+            for ob, bake in baked:
                 mesh = _link_copy(temporary, ob).data
-                _write_packing(mesh, packs[ob.name], corner_points)
-                display.write_display_colours(mesh, transfer, totals[meta["order"]], corner_points)
+                _write_packing(mesh, bake.packed, bake.corner_points)
+                display.write_display_colours(mesh, bake.transfer, totals[bake.meta["order"]], bake.corner_points)
             if scene.camera is not None:
                 _link_copy(temporary, scene.camera)
             _run_exporter(temporary, written)
@@ -61,29 +61,7 @@ def export(scene, path: str, profile_name: str) -> dict:
             "lights": gltf_pack.light_extras(shining, top_order)})
     return {"path": os.path.abspath(path), "profile": profile.name, "objects": list(packs),
             "packs": packs, "light_source": light_source,
-            "notes": [note for note in (materials.lost_note(ob) for ob, *_ in baked) if note is not None]}
-
-
-def _read_bake(mesh):
-    """(transfer, metadata, corner points, texel planes): per shading point, or for a texel bake per face corner,
-    sampled from its maps at the corner's lightmap UV (the colours COLOR_0 carries), with every corner its own point,
-    and the maps' planes as read (None for a bake per point)."""
-    if not texel_maps.is_texel_bake(mesh):
-        return (*storage.read_transfer(mesh), storage.corner_points_of(mesh), None)
-    planes, meta = texel_maps.read_planes(mesh)
-    image = planes.T.reshape(meta["height"], meta["width"], -1)
-    uvs = np.empty(2 * len(mesh.loops), dtype=np.float32)
-    mesh.uv_layers[meta["uv_map"]].uv.foreach_get("vector", uvs)
-    transfer = texels.sample_bilinear(image, uvs.reshape(-1, 2).astype(np.float64)).astype(np.float32)
-    return transfer, meta, np.arange(len(mesh.loops)), planes
-
-
-def _pack(ob, transfer, meta, planes, profile):
-    """The profile's packing of a per-point bake, or a texel bake's maps (its planes)."""
-    if planes is None:
-        return gltf_pack.pack(gltf_pack.to_gltf_frame(transfer).astype(np.float32), profile, ob.name)
-    texcoord = f"TEXCOORD_{ob.data.uv_layers.find(meta['uv_map'])}"  # the exporter writes every UV map, in order
-    return gltf_pack.pack_maps(gltf_pack.to_gltf_frame(planes.T).T, meta["width"], meta["height"], texcoord)
+            "notes": [note for note in (materials.lost_note(ob) for ob, _ in baked) if note is not None]}
 
 
 def _window_extras(window, cache) -> dict:
@@ -150,16 +128,14 @@ def _link_copy(temporary, ob):
 
 
 def _write_packing(mesh, packed, corner_points):
-    """The packed rows per vertex (POINT) or face corner (CORNER, through each corner's point); texel maps go into
-    the file afterwards."""
-    if isinstance(packed, gltf_pack.PackedMaps):
-        return
+    """The packed rows per vertex (POINT) or face corner (CORNER, through each corner's point); buffers (data
+    textures, texel maps) go into the file afterwards."""
     domain = "POINT" if corner_points is None else "CORNER"
     rows = slice(None) if corner_points is None else corner_points
     for name, values in packed.attributes.items():
         mesh.attributes.new(name, "FLOAT_COLOR", domain)
         mesh.attributes[name].data.foreach_set("color", np.ascontiguousarray(values[rows]).ravel())
-    if packed.texture is not None:
+    if packed.indexed:
         points = np.arange(len(mesh.vertices)) if corner_points is None else corner_points
         mesh.attributes.new(gltf_pack.INDEX_ATTRIBUTE, "FLOAT", domain)
         mesh.attributes[gltf_pack.INDEX_ATTRIBUTE].data.foreach_set("value", points.astype(np.float32))
@@ -193,14 +169,8 @@ def _finish_file(path, scene_name, packs, scene_extras):
         document, binary = glb.read(file.read())
     for mesh in document.get("meshes", []):
         packed = packs[mesh["name"].removeprefix(COPY_PREFIX)]
-        if isinstance(packed, gltf_pack.PackedMaps):
-            mesh["extras"] = {"prt": packed.extras([glb.append_buffer_view(document, binary, image.tobytes())
-                                                     for image in packed.maps])}
-            continue
-        extras = packed.extras()
-        if packed.texture is not None:
-            extras["texture"]["bufferView"] = glb.append_buffer_view(document, binary, packed.texture.tobytes())
-        mesh["extras"] = {"prt": extras}
+        views = [glb.append_buffer_view(document, binary, array.tobytes()) for array in packed.buffers()]
+        mesh["extras"] = {"prt": packed.extras(views)}
     for item in document.get("nodes", []) + document.get("meshes", []):
         item["name"] = item.get("name", "").removeprefix(COPY_PREFIX)
     scene = document["scenes"][document.get("scene", 0)]

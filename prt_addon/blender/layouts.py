@@ -6,16 +6,16 @@ to refine where it has one (`grid`), whether the probes between vertices measure
 its Subsurface Weight applies (`takes_subsurface`), the rows it stores (`stored_rows`), and writes the result
 (`write`), replacing any earlier bake of any layout (storage.remove_transfer). Reading back, `stored(mesh)` is the
 layout a mesh's bake has, and its `read`, `shade`, `display_source` and `describe` are what the relighting, the
-display and the Stored Bake panel use. Outside this module only the exports (glTF, `prt export`), whose formats
-differ per layout, ask which layout a bake has (texel_maps.is_texel_bake).
+display and the Stored Bake panel use; its `gltf` and `npz`, with `npz_side_files`, what the exports (blender.gltf,
+`prt export`) write. Nothing outside this module asks which layout a bake has.
 """
 
 from dataclasses import dataclass
 
 import numpy as np
 
-from ..core import bake, texel_refine, texels
-from . import display, storage, texel_maps
+from ..core import bake, gltf_pack, texel_refine, texels
+from . import display, npz_export, storage, texel_maps
 
 
 @dataclass
@@ -24,6 +24,16 @@ class Shading:
     transfer: np.ndarray              # (P, n²) or (P, 3, n²) per point, or (N, n²) per texel
     layout: type
     corner_points: np.ndarray | None = None  # per corner: (C,) each face corner's row
+
+
+@dataclass
+class GltfBake:
+    """A stored bake as the glTF export writes it: its packing for a profile (core.gltf_pack), and the rows of
+    transfer its COLOR_0 is shaded from, with each face corner's row (None: a row per vertex)."""
+    packed: object
+    transfer: np.ndarray
+    meta: dict
+    corner_points: np.ndarray | None
 
 
 class PerVertex:
@@ -79,6 +89,23 @@ class PerVertex:
     def describe(meta) -> str:
         """What the Stored Bake panel says of the layout, beyond the bake's figures ("" where nothing)."""
         return ""
+
+    @staticmethod
+    def gltf(ob, profile) -> GltfBake:
+        """The bake packed as vertex attributes (or a data texture) for the glTF `profile`, in glTF's frame."""
+        transfer, meta = storage.read_transfer(ob.data)
+        packed = gltf_pack.pack(gltf_pack.to_gltf_frame(transfer).astype(np.float32), profile, ob.name)
+        return GltfBake(packed, transfer, meta, storage.corner_points_of(ob.data))
+
+    @staticmethod
+    def npz_side_files(mesh, npz: str) -> list[str]:
+        """The files `npz` writes beside the .npz."""
+        return []
+
+    @staticmethod
+    def npz(ob, path: str) -> str:
+        """Writes the bake as the .npz `path` (blender.npz_export); returns what it wrote, in words."""
+        return npz_export.points_npz(ob, path)
 
 
 class PerCorner(PerVertex):
@@ -149,6 +176,29 @@ class PerTexel:
     @staticmethod
     def describe(meta) -> str:
         return f"Per texel: {meta['width']} × {meta['height']} in {meta['uv_map']!r}"
+
+    @staticmethod
+    def gltf(ob, profile) -> GltfBake:
+        """The maps as RGBA32F buffer views read through the lightmap UV map (which the exporter writes as a
+        TEXCOORD like every UV map), under every profile; COLOR_0 is shaded from the maps sampled at each face
+        corner's lightmap UV, every corner its own row."""
+        mesh = ob.data
+        planes, meta = texel_maps.read_planes(mesh)
+        image = planes.T.reshape(meta["height"], meta["width"], -1)
+        uvs = np.empty(2 * len(mesh.loops), dtype=np.float32)
+        mesh.uv_layers[meta["uv_map"]].uv.foreach_get("vector", uvs)
+        transfer = texels.sample_bilinear(image, uvs.reshape(-1, 2).astype(np.float64)).astype(np.float32)
+        texcoord = f"TEXCOORD_{mesh.uv_layers.find(meta['uv_map'])}"  # the exporter writes every UV map, in order
+        packed = gltf_pack.pack_maps(gltf_pack.to_gltf_frame(planes.T).T, meta["width"], meta["height"], texcoord)
+        return GltfBake(packed, transfer, meta, np.arange(len(mesh.loops)))
+
+    @staticmethod
+    def npz_side_files(mesh, npz: str) -> list[str]:
+        return texel_maps.exr_paths(mesh, npz_export.maps_stem(npz))
+
+    @staticmethod
+    def npz(ob, path: str) -> str:
+        return npz_export.texels_npz(ob, path)
 
 
 def for_surface(surface) -> PerVertex:

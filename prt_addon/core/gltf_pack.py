@@ -57,13 +57,27 @@ class Packed:
     order: int
     channels: int
 
-    def extras(self) -> dict:
+    @property
+    def indexed(self) -> bool:
+        """Whether each point's index goes with it as INDEX_ATTRIBUTE (to read its texels of the data texture)."""
+        return self.texture is not None
+
+    def buffers(self) -> list:
+        """The arrays that go into the file as buffer views, in the order extras() takes their views."""
+        return [] if self.texture is None else [self.texture]
+
+    def extras(self, views=()) -> dict:
+        """The mesh's `prt` extras, `views` the buffer views of buffers()."""
         layout = {"order": self.order, "channels": self.channels, "vec4s": self.vec4s}
         if self.texture is None:
             return {**layout, "layout": "attributes", "attributes": list(self.attributes)}
         height, width = self.texture.shape[:2]
-        return {**layout, "layout": "texture", "index_attribute": INDEX_ATTRIBUTE,
-                "texture": {"width": width, "height": height, "format": "RGBA32F"}}
+        texture = {"width": width, "height": height, "format": "RGBA32F", **{"bufferView": view for view in views}}
+        return {**layout, "layout": "texture", "index_attribute": INDEX_ATTRIBUTE, "texture": texture}
+
+    def describe(self) -> str:
+        return (f"order {self.order} × {self.channels} in {self.vec4s} VEC4 "
+                f"{'attributes' if self.texture is None else 'texels of a data texture'}")
 
 
 def to_gltf_frame(coefficients: np.ndarray) -> np.ndarray:
@@ -102,16 +116,26 @@ def pack(transfer: np.ndarray, profile: Profile, object_name: str) -> Packed:
 @dataclass
 class PackedMaps:
     """A texel bake's transfer as RGBA32F maps through a lightmap UV set: map j holds coefficients 4j .. 4j + 3 of
-    each texel, rows from the top (glTF's v = 0), so a viewer samples them with the TEXCOORD set as any texture."""
+    each texel, rows from the top (glTF's v = 0), so a viewer samples them with the TEXCOORD set as any texture.
+    No vertex attributes: the maps go into the file as buffer views."""
     maps: list  # vec4s × (height, width, 4) float32
     texcoord: str  # the glTF attribute of the lightmap UV map
     order: int
+    attributes = {}
+    indexed = False
+
+    def buffers(self) -> list:
+        return self.maps
 
     def extras(self, views: list) -> dict:
         height, width = self.maps[0].shape[:2]
         return {"order": self.order, "channels": 1, "vec4s": len(self.maps), "layout": "texel_maps",
                 "texcoord": self.texcoord, "maps": {"width": width, "height": height, "format": "RGBA32F",
                                                      "rows": "top first (v = 0)", "bufferViews": views}}
+
+    def describe(self) -> str:
+        height, width = self.maps[0].shape[:2]
+        return f"order {self.order} in {len(self.maps)} RGBA32F texel maps of {width} × {height} ({self.texcoord})"
 
 
 def pack_maps(planes: np.ndarray, width: int, height: int, texcoord: str) -> PackedMaps:
