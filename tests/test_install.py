@@ -62,14 +62,40 @@ def test_the_manifest_names_every_platform_and_all_their_wheels():
         *map(expected_wheels, WHEEL_TAGS))
 
 
+def wheels_fetch():
+    """wheels/fetch.py as a module."""
+    spec = importlib.util.spec_from_file_location("wheels_fetch", ROOT / "wheels" / "fetch.py")
+    fetch = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(fetch)
+    return fetch
+
+
+def test_fetch_asks_pip_for_each_wheel_by_its_python_and_platform_tags():
+    fetch = wheels_fetch()
+    assert fetch.pip_download_arguments(
+        "embreex-4.4.0.post1-cp311-cp311-manylinux_2_27_x86_64.manylinux_2_28_x86_64.whl") == [
+        "embreex==4.4.0.post1", "--no-deps", "--only-binary=:all:", "--python-version", "3.11", "--implementation",
+        "cp", "--platform", "manylinux_2_27_x86_64", "--platform", "manylinux_2_28_x86_64"]
+    assert fetch.pip_download_arguments("embreex-4.4.0.post1-cp313-cp313-win_amd64.whl")[4:] == [
+        "3.13", "--implementation", "cp", "--platform", "win_amd64"]
+
+
+def test_fetch_stops_with_one_line_on_a_listed_wheel_without_a_hash(tmp_path, monkeypatch, capsys):
+    fetch = wheels_fetch()
+    manifest = tmp_path / "blender_manifest.toml"
+    manifest.write_text('wheels = ["./wheels/embreex-4.4.0.post2-cp313-cp313-win_amd64.whl"]\n')
+    monkeypatch.setattr(fetch, "MANIFEST", manifest)
+    assert fetch.main() == 1
+    assert capsys.readouterr().err == ("fetch: embreex-4.4.0.post2-cp313-cp313-win_amd64.whl: in blender_manifest.toml"
+                                       " but without a SHA-256 in wheels/fetch.py\n")
+
+
 @pytest.mark.parametrize("platform", sorted(WHEEL_TAGS))
 def test_each_platforms_zip_holds_its_wheels_as_fetched_and_lists_them(built_zips, built_zip, platform):
     """A platform's zip holds that platform's wheels, byte for byte those wheels/fetch.py checked, the same add-on as
     this platform's zip, and a manifest that names that platform and those wheels (Blender installs what it
     lists)."""
-    spec = importlib.util.spec_from_file_location("wheels_fetch", ROOT / "wheels" / "fetch.py")
-    fetch = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(fetch)
+    fetch = wheels_fetch()
     with zipfile.ZipFile(built_zips[platform]) as archive, zipfile.ZipFile(built_zip) as reference:
         wheels = {n for n in archive.namelist() if n.startswith("wheels/")}
         assert wheels == expected_wheels(platform)
