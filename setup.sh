@@ -4,6 +4,8 @@
 #     installed only when missing;
 #   - a virtual environment with the bpy module of the newest supported Blender this machine can run (the newest
 #     one whose Python is found), numpy and the test tools; it says which it installed;
+#   - embreex, the optional Embree ray engine's binding, where it has a wheel (x86-64), and the wheels the
+#     extension's zips bundle, into wheels/ (wheels/fetch.py: the manifest's list, each file's hash checked);
 #   - this checkout as a package of that environment (pyproject.toml, editable: the environment runs the checkout as
 #     it is), which gives the `prt` command and `python -m prt_addon` in any folder;
 #   - the sample scenes, built in that Blender's file format (sample_scenes/make_scenes.py);
@@ -89,6 +91,9 @@ if [ ! -x "$venv/bin/python" ]; then
 fi
 "$venv/bin/python" -m pip install -q --upgrade pip
 "$venv/bin/python" -m pip install -q "bpy==$bpy_version" -r requirements-dev.txt
+# The version of the wheels blender_manifest.toml bundles (tests/test_install.py checks that they agree).
+"$venv/bin/python" -m pip install -q --only-binary embreex "embreex==4.4.0.post1; platform_machine == 'x86_64'"
+"$venv/bin/python" wheels/fetch.py
 "$venv/bin/python" -m pip install -q -e .
 echo "setup: installed Blender $("$venv/bin/python" -c 'import bpy; print(bpy.app.version_string)') (bpy $bpy_version) on Python $("$venv/bin/python" -c 'import platform; print(platform.python_version())') in $venv"
 

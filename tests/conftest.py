@@ -1,11 +1,13 @@
 """Shared fixtures. bpy is imported lazily so the core's tests run without it."""
 
-import importlib
+import importlib.util
 import os
+import shutil
 import subprocess
 import sys
 import tempfile
 import time
+import tomllib
 from pathlib import Path
 
 import pytest
@@ -17,9 +19,15 @@ EXTENSION_ID = "prt"
 TEST_REPO = "prt_test_repo"
 ADDON_MODULE = f"bl_ext.{TEST_REPO}.{EXTENSION_ID}"
 
+# Blender's user extensions folder for this run and the processes it starts, set before bpy is imported: installing
+# the extension extracts its wheels into <this>/.local/lib/pythonX.Y/site-packages, not into the user's own.
+USER_EXTENSIONS = Path(tempfile.mkdtemp(prefix="prt_user_extensions_"))
+os.environ["BLENDER_USER_EXTENSIONS"] = str(USER_EXTENSIONS)
+
 
 def pytest_sessionfinish(session, exitstatus):
     session.config.prt_exit_status = int(exitstatus)
+    shutil.rmtree(USER_EXTENSIONS, ignore_errors=True)
 
 
 @pytest.hookimpl(trylast=True)
@@ -40,14 +48,34 @@ def blender_ext_tool() -> Path:
     return Path(bpy.utils.system_resource("SCRIPTS")) / "addons_core" / "bl_pkg" / "cli" / "blender_ext.py"
 
 
+def this_platform() -> str:
+    """Blender's name of this machine's platform (e.g. linux-x64), which picks the zip it installs."""
+    spec = importlib.util.spec_from_file_location("blender_ext", blender_ext_tool())
+    tool = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(tool)
+    return tool.platform_from_this_system()
+
+
 @pytest.fixture(scope="session")
-def built_zip(tmp_path_factory) -> Path:
-    """The extension zip, built by Blender's own tool from this checkout."""
+def built_zips(tmp_path_factory) -> dict[str, Path]:
+    """{platform: its zip}: the extension built by Blender's own tool from this checkout, one zip per platform of
+    the manifest (`build --split-platforms`), each with the manifest's wheels for that platform."""
+    manifest = tomllib.loads((ROOT / "blender_manifest.toml").read_text())
+    missing = [wheel for wheel in manifest["wheels"] if not (ROOT / wheel).is_file()]
+    assert not missing, f"{missing[0]} is missing: run `python wheels/fetch.py` (setup.sh does)"
     out = tmp_path_factory.mktemp("build")
-    subprocess.run([sys.executable, str(blender_ext_tool()), "build", "--source-dir", str(ROOT),
-                    "--output-dir", str(out)], check=True, capture_output=True, text=True, timeout=300)
-    (zip_path,) = out.glob("*.zip")
-    return zip_path
+    done = subprocess.run([sys.executable, str(blender_ext_tool()), "build", "--split-platforms", "--source-dir",
+                           str(ROOT), "--output-dir", str(out)], capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stdout + done.stderr
+    version = manifest["version"]
+    return {platform: out / f"{EXTENSION_ID}-{version}-{platform.replace('-', '_')}.zip"
+            for platform in manifest["platforms"]}
+
+
+@pytest.fixture(scope="session")
+def built_zip(built_zips) -> Path:
+    """This platform's zip: the one a user of this machine installs."""
+    return built_zips[this_platform()]
 
 
 @pytest.fixture(scope="session")

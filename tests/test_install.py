@@ -1,8 +1,14 @@
-"""The extension installs, registers, and unregisters cleanly, the way users install it; and the command line is
-an installed package of the venv (pyproject.toml, which setup.sh installs), so `prt` runs in any folder."""
+"""The extension installs, registers, and unregisters cleanly, the way users install it: this platform's zip, with
+the embreex wheels it bundles for the Embree ray engine; and the command line is an installed package of the venv
+(pyproject.toml, which setup.sh installs), so `prt` runs in any folder."""
 
+import hashlib
+import importlib.machinery
+import importlib.util
+import json
 import os
 from pathlib import Path
+import re
 import subprocess
 import sys
 import tomllib
@@ -11,7 +17,21 @@ import zipfile
 import bpy
 import pytest
 
-from conftest import ADDON_MODULE, ROOT, blender_ext_tool
+from conftest import ADDON_MODULE, ROOT, TEST_REPO, USER_EXTENSIONS, blender_ext_tool, this_platform
+
+MANIFEST = tomllib.loads((ROOT / "blender_manifest.toml").read_text())
+ADDON_FILES = ("blender_manifest.toml", "__init__.py", "LICENSE", "THIRD_PARTY_LICENSES.txt")
+# The embreex wheels each platform's zip must hold, by the wheels' platform tags (PyPI has none for ARM Linux or
+# ARM Windows): both Pythons of the supported Blenders, 3.11 (4.5, 5.0) and 3.13 (5.2, 5.3).
+WHEEL_TAGS = {
+    "linux-x64": "manylinux_2_27_x86_64.manylinux_2_28_x86_64",
+    "linux-arm64": None,
+    "windows-x64": "win_amd64",
+    "windows-arm64": None,
+    "macos-x64": "macosx_13_0_x86_64",
+    "macos-arm64": "macosx_13_0_arm64",
+}
+EMBREEX = "embreex-4.4.0.post1"
 
 
 def test_manifest_validates():
@@ -20,14 +40,133 @@ def test_manifest_validates():
     assert result.returncode == 0, result.stdout + result.stderr
 
 
-def test_zip_holds_only_the_addon(built_zip):
+def expected_wheels(platform: str) -> set[str]:
+    tag = WHEEL_TAGS[platform]
+    return set() if tag is None else {f"wheels/{EMBREEX}-{python}-{python}-{tag}.whl" for python in ("cp311", "cp313")}
+
+
+def test_zip_holds_only_the_addon_and_this_platforms_wheels(built_zip):
+    assert built_zip.name == f"prt-{MANIFEST['version']}-{this_platform().replace('-', '_')}.zip"
     names = zipfile.ZipFile(built_zip).namelist()
-    assert {"blender_manifest.toml", "__init__.py", "LICENSE", "prt_addon/__init__.py",
-            "prt_addon/core/sh.py"} <= set(names)
+    assert {*ADDON_FILES, "prt_addon/__init__.py", "prt_addon/core/sh.py"} <= set(names)
+    assert {n for n in names if n.startswith("wheels/")} == expected_wheels(this_platform())
     strays = [n for n in names
-              if n not in ("blender_manifest.toml", "__init__.py", "LICENSE")
+              if n not in ADDON_FILES and not n.startswith("wheels/")
               and not (n.startswith("prt_addon/") and n.endswith(".py"))]
     assert strays == []
+
+
+def test_the_manifest_names_every_platform_and_all_their_wheels():
+    assert sorted(MANIFEST["platforms"]) == sorted(WHEEL_TAGS)
+    assert {wheel.removeprefix("./") for wheel in MANIFEST["wheels"]} == set().union(
+        *map(expected_wheels, WHEEL_TAGS))
+
+
+def wheels_fetch():
+    """wheels/fetch.py as a module."""
+    spec = importlib.util.spec_from_file_location("wheels_fetch", ROOT / "wheels" / "fetch.py")
+    fetch = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(fetch)
+    return fetch
+
+
+def test_fetch_asks_pip_for_each_wheel_by_its_python_and_platform_tags():
+    fetch = wheels_fetch()
+    assert fetch.pip_download_arguments(
+        "embreex-4.4.0.post1-cp311-cp311-manylinux_2_27_x86_64.manylinux_2_28_x86_64.whl") == [
+        "embreex==4.4.0.post1", "--no-deps", "--only-binary=:all:", "--python-version", "3.11", "--implementation",
+        "cp", "--platform", "manylinux_2_27_x86_64", "--platform", "manylinux_2_28_x86_64"]
+    assert fetch.pip_download_arguments("embreex-4.4.0.post1-cp313-cp313-win_amd64.whl")[4:] == [
+        "3.13", "--implementation", "cp", "--platform", "win_amd64"]
+
+
+def test_fetch_stops_with_one_line_on_a_listed_wheel_without_a_hash(tmp_path, monkeypatch, capsys):
+    fetch = wheels_fetch()
+    manifest = tmp_path / "blender_manifest.toml"
+    manifest.write_text('wheels = ["./wheels/embreex-4.4.0.post2-cp313-cp313-win_amd64.whl"]\n')
+    monkeypatch.setattr(fetch, "MANIFEST", manifest)
+    assert fetch.main() == 1
+    assert capsys.readouterr().err == ("fetch: embreex-4.4.0.post2-cp313-cp313-win_amd64.whl: in blender_manifest.toml"
+                                       " but without a SHA-256 in wheels/fetch.py\n")
+
+
+@pytest.mark.parametrize("platform", sorted(WHEEL_TAGS))
+def test_each_platforms_zip_holds_its_wheels_as_fetched_and_lists_them(built_zips, built_zip, platform):
+    """A platform's zip holds that platform's wheels, byte for byte those wheels/fetch.py checked, the same add-on as
+    this platform's zip, and a manifest that names that platform and those wheels (Blender installs what it
+    lists)."""
+    fetch = wheels_fetch()
+    with zipfile.ZipFile(built_zips[platform]) as archive, zipfile.ZipFile(built_zip) as reference:
+        wheels = {n for n in archive.namelist() if n.startswith("wheels/")}
+        assert wheels == expected_wheels(platform)
+        for wheel in wheels:
+            assert hashlib.sha256(archive.read(wheel)).hexdigest() == fetch.SHA256[Path(wheel).name], wheel
+        assert ({n for n in archive.namelist() if not n.startswith("wheels/")}
+                == {n for n in reference.namelist() if not n.startswith("wheels/")})
+        generated = tomllib.loads(archive.read("blender_manifest.toml").decode())["build"]["generated"]
+    assert generated["platforms"] == [platform]
+    assert {wheel.removeprefix("./") for wheel in generated["wheels"]} == wheels
+
+
+def test_setup_installs_the_embreex_the_zips_bundle():
+    """The venv's embreex (setup.sh, for the command line's bakes) is the version of the bundled wheels."""
+    (pinned,) = re.findall(r"embreex==([^;\s\"']+)", (ROOT / "setup.sh").read_text())
+    assert f"embreex-{pinned}" == EMBREEX
+
+
+# -- the Embree engine's binding, from the installed zip's wheels ----------------------------------------------
+
+def in_blender_with_the_installed_extension(code: str) -> subprocess.CompletedProcess:
+    """Runs `code` in a new process that imports bpy as Blender starts, with the user extensions folder of this run
+    (conftest): the installed wheels' site-packages come before the venv's, so `import embreex` is the zip's even
+    where the venv has its own; and with the installed extension enabled from its repository (`ADDON_MODULE`)."""
+    directory = bpy.context.preferences.extensions.repos[TEST_REPO].directory
+    prelude = (f"import bpy\n"
+               f"bpy.context.preferences.extensions.repos.new(name={TEST_REPO!r}, module={TEST_REPO!r}, "
+               f"custom_directory={directory!r}, source='USER')\n"
+               f"bpy.ops.preferences.addon_enable(module={ADDON_MODULE!r})\n")
+    return subprocess.run([sys.executable, "-c", prelude + code], cwd=USER_EXTENSIONS, env=without_pythonpath(),
+                          capture_output=True, text=True, timeout=300)
+
+
+def installed_site_packages() -> Path:
+    """Where Blender extracts the enabled extensions' wheels for this Python."""
+    return USER_EXTENSIONS / ".local" / "lib" / "python{}.{}".format(*sys.version_info[:2]) / "site-packages"
+
+
+ONE_TRIANGLE = """
+import embreex
+import numpy as np
+from embreex import rtcore_scene
+from embreex.mesh_construction import TriangleMesh
+scene = rtcore_scene.EmbreeScene()
+TriangleMesh(scene, np.array([[[0, 0, 1], [1, 0, 1], [0, 1, 1]]], np.float32))
+origins = np.array([[0.2, 0.2, 0], [0.8, 0.8, 0], [0.2, 0.2, 0]], np.float32)
+directions = np.array([[0, 0, 1], [0, 0, 1], [0, 0, -1]], np.float32)
+print(embreex.__file__)
+print((scene.run(origins, directions, query="OCCLUDED") >= 0).tolist())
+print(scene.run(origins, directions, query="DISTANCE").tolist())
+"""
+
+
+def test_the_zips_embreex_wheel_is_installed_and_occludes_a_ray(addon):
+    """Installing this platform's zip extracts its embreex wheel for this Python into the user extensions'
+    site-packages, and Blender's Python imports embreex from there: a one-triangle scene (z = 1 over x, y ≥ 0,
+    x + y ≤ 1) stops the ray up from (0.2, 0.2, 0) at distance 1, and neither the ray up from (0.8, 0.8, 0), which
+    passes beside it, nor the one down from (0.2, 0.2, 0)."""
+    if not expected_wheels(this_platform()):
+        pytest.skip(f"PyPI has no embreex wheel for {this_platform()}")
+    assert Path(bpy.utils.user_resource("EXTENSIONS")) == USER_EXTENSIONS
+    site = installed_site_packages()
+    assert (site / f"{EMBREEX}.dist-info").is_dir()
+    assert (site / "embreex" / f"rtcore_scene{importlib.machinery.EXTENSION_SUFFIXES[0]}").is_file()
+    done = in_blender_with_the_installed_extension(ONE_TRIANGLE)
+    assert done.returncode == 0, done.stderr
+    module, occluded, distances = done.stdout.strip().splitlines()[-3:]
+    assert Path(module).is_relative_to(site)
+    assert occluded == "[True, False, False]"
+    distance = json.loads(distances)
+    assert distance[0] == pytest.approx(1.0, abs=1e-6) and min(distance[1:]) > 1e30
 
 
 def _our_classes():
