@@ -152,9 +152,7 @@ def subset_receivers(receivers, picks):
         groups = source.ray_groups
         chosen = (picks.index[mine] if groups is None
                   else np.flatnonzero(np.isin(groups, groups[picks.index[mine]])))
-        subsets.append(bake.Receiver(source.name, source.positions[chosen], source.normals[chosen], source.key,
-                                     inward_of(source)[chosen], None if groups is None else groups[chosen],
-                                     None if source.surface_step is None else source.surface_step[chosen]))
+        subsets.append(source.subset(chosen))
         rows[mine] = offset + np.searchsorted(chosen, picks.index[mine])  # picks come sorted
         offset += len(chosen)
     return subsets, rows

@@ -4,6 +4,7 @@ corner, relit, exported and drawn per corner, and agree with Cycles, which evalu
 import json
 
 import bpy
+import bmesh
 import numpy as np
 import pytest
 
@@ -11,7 +12,7 @@ from benchmarks import assets
 from conftest import run_cli
 from prt_addon.blender import geometry, mesh_arrays, storage
 from prt_addon.blender.scene_bake import SceneBake
-from prt_addon.core import corners, shading
+from prt_addon.core import corners, lobes, shading
 from prt_addon.core.bake import BakeSettings
 from test_bake_blender import box, grid
 
@@ -285,3 +286,28 @@ def test_a_weighted_normal_box_on_the_floor_is_black_where_it_rests_and_agrees_w
     validation = prt.validation.Validation(bpy.context, 32, 4, ["Cube"])
     comparisons = validation.run()
     assert comparisons[0].error < 0.02 and comparisons[0].p99 < 0.08, validation.lines(comparisons)
+
+
+def test_corners_against_their_faces_are_black_and_do_not_darken_their_neighbours(empty_scene):
+    """A 4 × 4 grid with every other face (a chessboard) wound down while every corner's custom normal points up,
+    as an OBJ's `vn` lines give them. Cycles' bake is black at the corners wound against their normals (README,
+    R2) and sees the whole sky from the others: nothing lies above the plane. So the downward-wound corners are
+    stored as 0 and every other corner as the unshadowed lobe about +z in closed form, bit for bit (a point of open
+    sky casts no ray), though each of its vertex's faces wound the other way seems, by its winding, to face it."""
+    plane = grid("Chessboard", cuts=4)
+    reversing = [face.index for face in plane.data.polygons if (face.index + face.index // 4) % 2]
+    edited = bmesh.new()
+    edited.from_mesh(plane.data)
+    edited.faces.ensure_lookup_table()
+    bmesh.ops.reverse_faces(edited, faces=[edited.faces[k] for k in reversing])
+    edited.to_mesh(plane.data)
+    edited.free()
+    plane.data.normals_split_custom_set([(0.0, 0.0, 1.0)] * len(plane.data.loops))
+    SceneBake(bpy.context, BakeSettings(samples=64), ["Chessboard"]).run()
+    transfer, meta = storage.read_transfer(plane.data)
+    against = face_normal_of_corners(plane.data)[:, 2] < 0
+    assert meta["domain"] == "CORNER" and int(against.sum()) == 4 * len(reversing)
+    corner_points = storage.corner_points_of(plane.data)
+    assert np.all(transfer[corner_points[against]] == 0.0)
+    up = lobes.unshadowed_transfer(meta["order"], np.array([[0.0, 0.0, 1.0]])).astype(np.float32)
+    assert np.array_equal(transfer[corner_points[~against]], np.repeat(up, int((~against).sum()), axis=0))

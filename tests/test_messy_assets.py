@@ -159,11 +159,8 @@ def missed(reason):
 @pytest.mark.parametrize("name", [
     "boxes crossing",  # RMS 1.24 %, p99 6.7 % at these settings (full run, 4 × 32: 0.00 %, 3.2 %)
     "wheel in arch",   # RMS 1.81 %, p99 16.0 % (full run: 1.09 %, 7.3 %)
-    pytest.param("normals against winding", marks=missed(
-        "RMS 38.2 %, p99 183 %: 151 corners black in PRT and lit in Cycles (76 % of the squared difference), "
-        "most on correctly wound faces beside the reversed ones")),
-    pytest.param("OBJ reversed vn", marks=missed(
-        "RMS 32.0 %, p99 213 %: 119 corners black in PRT and lit in Cycles (73 %)")),
+    "normals against winding",  # RMS 0.00 %, p99 5.6 %
+    "OBJ reversed vn",  # RMS 1.23 %, p99 8.8 %
     pytest.param("sliver edges", marks=missed(
         "RMS 18.8 %, p99 82 %: the corners on the sliver faces (99 % of the squared difference)")),
     pytest.param("open parts", marks=missed(

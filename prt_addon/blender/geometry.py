@@ -14,11 +14,19 @@ from .mesh_arrays import (mesh_corner_normals, mesh_corner_vertices, mesh_positi
 
 
 # -- shading points and transforms ---------------------------------------------------------------------------
-def mesh_shading_points(mesh) -> corners.ShadingPoints:
+def mesh_shading_points(mesh, positions=None, corner_triangles=None) -> corners.ShadingPoints:
+    """The mesh's shading points (core.corners), from its vertex `positions` and its triangles' corners when the
+    caller has read them already."""
     corner_vertices = mesh_corner_vertices(mesh)
-    if mesh.normals_domain == "POINT":  # smooth, no sharp edges or custom normals: every corner has its vertex's
-        return corners.unsplit_points(corner_vertices, mesh_vertex_normals(mesh))  # normal (a third of the gathering)
-    return corners.shading_points(corner_vertices, mesh_corner_normals(mesh), len(mesh.vertices))
+    positions = mesh_positions(mesh) if positions is None else positions
+    corner_triangles = mesh_triangles(mesh, of="loops") if corner_triangles is None else corner_triangles
+    point_domain = mesh.normals_domain == "POINT"  # smooth, no sharp edges or custom normals: every corner has its
+    normals = mesh_vertex_normals(mesh) if point_domain else mesh_corner_normals(mesh)  # vertex's normal
+    corner_normals = normals[corner_vertices] if point_domain else normals
+    against = corners.against_faces(corner_normals, positions[corner_vertices], corner_triangles)
+    if point_domain and not against.any():  # (skipping the grouping saves a third of the gathering)
+        return corners.unsplit_points(corner_vertices, normals)
+    return corners.shading_points(corner_vertices, corner_normals, len(mesh.vertices), against)
 
 
 def points_to_world(matrix, points: np.ndarray) -> np.ndarray:
@@ -112,7 +120,8 @@ def surface_from_object(ob, depsgraph, notes: list, for_storage: bool = True, al
         if not np.isfinite(positions).all():
             bad = int((~np.isfinite(positions).all(1)).sum())
             raise InputError(f"{ob.name!r} has {bad} vertices with non-finite (NaN or infinite) coordinates")
-        points = mesh_shading_points(eval_mesh)
+        corner_triangles = mesh_triangles(eval_mesh, of="loops")
+        points = mesh_shading_points(eval_mesh, positions, corner_triangles)
         split = points.extra_points > 0
         vertex_normals = mesh_vertex_normals(eval_mesh)
         normals = points.point_normals
@@ -120,7 +129,7 @@ def surface_from_object(ob, depsgraph, notes: list, for_storage: bool = True, al
         same = np.all(np.abs(own - vertex_normals) <= 10.0 ** -corners.NORMAL_DECIMALS, axis=1)
         own[same] = vertex_normals[same]
         positions = positions[points.point_vertices]
-        triangles = points.corner_points[mesh_triangles(eval_mesh, of="loops")].astype(np.int32)
+        triangles = points.corner_points[corner_triangles].astype(np.int32)
         used = np.zeros(len(positions), dtype=bool)
         used[_face_vertices_with_area(triangles, positions)] = True
         towards_faces = _towards_faces(triangles, positions)
@@ -143,7 +152,7 @@ def surface_from_object(ob, depsgraph, notes: list, for_storage: bool = True, al
                      f"they get zero transfer")
     groups = corners.ray_groups(points.point_vertices, world_normals, len(vertex_normals)) if split else None
     receiver = bake.Receiver(ob.name, world_positions, world_normals, bake.Receiver.key_for(ob.name), inward, groups,
-                             surface_step)
+                             surface_step, points.against)
     return Surface(receiver, triangles, colours, points.corner_points if split else None, points.split_vertices,
                    points.extra_points)
 

@@ -46,15 +46,21 @@ def occluders_from_depsgraph(depsgraph, surfaces=()) -> tuple[bake.Occluders, se
         return bake.Occluders(np.zeros((0, 3)), np.zeros((0, 3), dtype=np.int32), np.zeros((0, 3))), sources
     vertices = np.concatenate(vertex_blocks)
     triangles = np.concatenate(triangle_blocks)
+    against = None
+    if any(s.receiver.against is not None for s in surfaces):
+        against = np.zeros(len(vertices), dtype=bool)
+        for s, first in zip(surfaces, offsets):
+            if s.receiver.against is not None:
+                against[first:first + len(s.receiver.against)] = s.receiver.against
     if not len(triangles):
-        return bake.Occluders(vertices, triangles, np.zeros((0, 3)), solved_vertices=solved), sources
+        return bake.Occluders(vertices, triangles, np.zeros((0, 3)), solved_vertices=solved, against=against), sources
     found = polygons.largest([polygon for polygon in flat if polygon is not None], polygons.MAX_POLYGONS)
     hull_rows = np.zeros(len(vertices), dtype=bool)
     hull_rows[triangles] = True
     for surface, end in zip(surfaces, offsets[1:]):  # not twice where a split vertex's points repeat its position
         hull_rows[end - surface.extra_points:end] = False
     hull = convex_hull_points(vertices[hull_rows])
-    return bake.Occluders(vertices, triangles, hull, found, solved_vertices=solved), sources
+    return bake.Occluders(vertices, triangles, hull, found, solved_vertices=solved, against=against), sources
 
 
 def shadow_caster(instance):

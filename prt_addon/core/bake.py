@@ -64,10 +64,19 @@ class Receiver:
     # (V, 3) unit steps from each vertex into its faces along the surface itself (not tangent to the normal), zero
     # where there is none: where a point lies against another surface is judged a step along them. None: `inward`.
     surface_step: np.ndarray | None = None
+    # (V,) bool: rows whose normal points against their faces, black as Cycles shades them (core.corners); None: none.
+    against: np.ndarray | None = None
 
     @staticmethod
     def key_for(name: str) -> int:
         return zlib.crc32(name.encode("utf-8"))
+
+    def subset(self, rows: np.ndarray) -> "Receiver":
+        """The same receiver with only `rows`, each keeping its per-row arrays."""
+        def part(values):
+            return None if values is None else values[rows]
+        return Receiver(self.name, self.positions[rows], self.normals[rows], self.key, part(self.inward),
+                        part(self.ray_groups), part(self.surface_step), part(self.against))
 
 
 @dataclass
@@ -77,13 +86,16 @@ class Occluders:
 
     The first `solved_vertices` vertices are those of the surfaces whose transfer the job solves, in the job's
     order: interreflection reads a hit triangle's corners as solved vertices, so it needs exactly that.
-    `engine` names the ray engine that traces them (core.engines)."""
+    `engine` names the ray engine that traces them (core.engines). `against` (P,) bool marks the vertices that are
+    points whose normal points against their faces (Receiver.against; None: none is), so that contact can see a face
+    as its corner at a vertex is shaded (core.contact)."""
     vertices: np.ndarray   # (P, 3) float64
     triangles: np.ndarray  # (T, 3) int
     hull: np.ndarray       # (H, 3) float64: any superset of the convex hull's vertices
     polygons: list = field(default_factory=list)  # (m, 3) float64 corners each; see polygons.py
     solved_vertices: int = 0
     engine: str = engines.DEFAULT
+    against: np.ndarray | None = None
     _caster: RayCaster | None = field(default=None, init=False, repr=False, compare=False)
 
     def ray_caster(self) -> RayCaster:

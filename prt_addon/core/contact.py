@@ -41,16 +41,18 @@ def touched_surfaces(caster, surface, normals: np.ndarray, steps: np.ndarray):
     searched = np.unique(row[facing])
     near = caster.engine.nearest(stepped[searched], offset)
     at = searched[near.point]
-    near_dots = _single_dots(near.normal, normals[at])
+    near_normal = near.normal if caster.against is None else np.where(
+        _shaded_against(caster, near.triangle, surface[at])[:, None], -near.normal, near.normal)
+    near_dots = _single_dots(near_normal, normals[at])
     # one ndarray.dot per face, whose BLAS sum rounds as no array expression here does: the same bits as always
     heights = np.array([(point - nearest).dot(normal)
-                        for point, nearest, normal in zip(stepped[at], near.location, near.normal)])
+                        for point, nearest, normal in zip(stepped[at], near.location, near_normal)])
     touches = (near_dots < FACING_COSINE) & (heights > -ON_SURFACE * offset)
     lying = np.zeros(len(surface), dtype=bool)
     lying[at[touches & (near.distance <= ON_SURFACE * offset)]] = True
     row = np.concatenate([row[kept], at[touches]])
     dots = np.concatenate([dots[kept], near_dots[touches]])
-    normals_there = np.concatenate([face_normal[face[kept]], near.normal[touches]])
+    normals_there = np.concatenate([face_normal[face[kept]], near_normal[touches]])
     touched = np.zeros_like(normals)
     most = np.lexsort((dots, row))  # each row's most facing face first
     first = most[np.r_[True, row[most][1:] != row[most][:-1]]] if len(row) else most
@@ -78,6 +80,17 @@ def _near_vertices(caster, surface):
     first_face = np.r_[0, np.cumsum(counts)[:-1]]
     face = np.repeat(first_face[place_of_row] - np.r_[0, np.cumsum(per_row)[:-1]], per_row) + np.arange(len(row))
     return row, face, near.location, near.normal, own, near.triangle
+
+
+def _shaded_against(caster, triangles, vertices) -> np.ndarray:
+    """(n,) bool: each of `triangles` (n,) has its corner at the point's vertex (`vertices` (n, 3)) on a point
+    whose normal points against the face (caster.against): Cycles shades that corner from behind the winding, and
+    its rays hit faces whatever their winding, so the face turns to a point of that vertex the side its shading
+    normal gives it. Else a neighbour wound inward under an outward normal (an OBJ's) would seem to face every
+    point around it, and they would seem to touch it."""
+    corners_ = caster.triangles[triangles]  # (n, 3)
+    same = caster.vertices[corners_] == vertices[:, None]
+    return (same[..., 0] & same[..., 1] & same[..., 2] & caster.against[corners_]).any(axis=1)
 
 
 def _single_dots(first, second) -> np.ndarray:

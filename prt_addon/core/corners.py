@@ -5,6 +5,10 @@ Angle give a vertex's corners different normals), and Cycles evaluates a vertex-
 vertex whose corners share one normal is one point; a vertex whose corners have k distinct normals is k points,
 each seen from its own faces. Points 0..V-1 are the vertices themselves (with the normal of their first corner),
 points V.. the further normals of split vertices, so a mesh without splits has exactly its vertices as points.
+
+A corner whose normal points against its face (an OBJ's `vn` line against the face's winding) is black in Cycles
+(README, "Messy models: what Cycles decides"), whatever light its vertex's other corners with that normal gather: such
+corners are points of their own, marked `against`.
 """
 
 from dataclasses import dataclass
@@ -22,6 +26,8 @@ class ShadingPoints:
     point_vertices: np.ndarray  # (P,) the vertex of each point; the first V are 0..V-1
     point_normals: np.ndarray   # (P, 3) the corner normal each point is shaded with
     vertex_count: int
+    against: np.ndarray | None = None  # (P,) bool: the point's corners' normal points against their faces; None: none
+
 
     @property
     def extra_points(self) -> int:
@@ -43,11 +49,31 @@ def unique_rows(rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return first, inverse.ravel()
 
 
-def shading_points(corner_vertices: np.ndarray, corner_normals: np.ndarray, vertex_count: int) -> ShadingPoints:
-    """Groups corners (C,) with normals (C, 3) into points; a vertex without corners keeps a zero normal."""
+def against_faces(corner_normals: np.ndarray, positions: np.ndarray, corner_triangles: np.ndarray) -> np.ndarray:
+    """(C,) bool: each corner's normal (C, 3) points against its face, N·Ng < 0, with Ng the normal of the first
+    triangle (`corner_triangles` (T, 3) of corner indices, their vertices' `positions` given per corner (C, 3)) that
+    holds the corner: where Cycles' vertex-colour bake samples it. A corner on no triangle, or on a zero-area one
+    (whose Ng Cycles finds not a number: docs/cycles_conventions.md, R3), is not against its face."""
+    count = len(corner_normals)
+    corners_ = positions[corner_triangles]
+    face_normals = np.cross(corners_[:, 1] - corners_[:, 0], corners_[:, 2] - corners_[:, 0])
+    first = np.full(count, len(corner_triangles))
+    np.minimum.at(first, corner_triangles.ravel(), np.repeat(np.arange(len(corner_triangles)), 3))
+    held = first < len(corner_triangles)
+    dots = np.einsum("ij,ij->i", corner_normals[held], face_normals[first[held]])
+    found = np.zeros(count, dtype=bool)
+    found[held] = dots < 0.0
+    return found
+
+
+def shading_points(corner_vertices: np.ndarray, corner_normals: np.ndarray, vertex_count: int,
+                   against: np.ndarray | None = None) -> ShadingPoints:
+    """Groups corners (C,) with normals (C, 3) into points, the corners `against` their faces (C,) bool apart from
+    the others (None: none is); a vertex without corners keeps a zero normal."""
     rounded = np.round(np.asarray(corner_normals, dtype=np.float64), NORMAL_DECIMALS) + 0.0  # -0.0 → 0.0
+    keys = [corner_vertices.astype(np.float64), rounded] + ([] if against is None else [against.astype(np.float64)])
     # The order of the groups does not matter: points are numbered below.
-    first_corner, group_of_corner = unique_rows(np.column_stack([corner_vertices.astype(np.float64), rounded]))
+    first_corner, group_of_corner = unique_rows(np.column_stack(keys))
     group_vertex = np.asarray(corner_vertices, dtype=np.int64)[first_corner]
     # Each vertex's group holding its lowest corner becomes the vertex's own point; the other groups follow.
     order = np.lexsort((first_corner, group_vertex))
@@ -61,7 +87,11 @@ def shading_points(corner_vertices: np.ndarray, corner_normals: np.ndarray, vert
     point_vertices = np.concatenate([np.arange(vertex_count), group_vertex[extra]])
     point_normals = np.zeros((len(point_vertices), 3))
     point_normals[point_of_group] = np.asarray(corner_normals, dtype=np.float64)[first_corner]
-    return ShadingPoints(point_of_group[group_of_corner], point_vertices, point_normals, vertex_count)
+    point_against = None
+    if against is not None and against.any():
+        point_against = np.zeros(len(point_vertices), dtype=bool)
+        point_against[point_of_group] = against[first_corner]
+    return ShadingPoints(point_of_group[group_of_corner], point_vertices, point_normals, vertex_count, point_against)
 
 
 def unsplit_points(corner_vertices: np.ndarray, vertex_normals: np.ndarray) -> ShadingPoints:

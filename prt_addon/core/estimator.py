@@ -38,8 +38,11 @@ def provably_unoccluded(positions, normals, hull, offset) -> np.ndarray:
 
 
 def bake_chunk(caster, receiver: Receiver, rows: np.ndarray, settings: BakeSettings):
-    """Generator over one chunk (the receiver's `rows`) in either mode; yields rays cast, returns a ChunkResult."""
+    """Generator over one chunk (the receiver's `rows`) in either mode; yields rays cast, returns a ChunkResult.
+    Rows against their faces are black without rays, as rows without a surface."""
     normals = receiver.normals[rows]
+    if receiver.against is not None:
+        normals = np.where(receiver.against[rows, None], 0.0, normals)
     if settings.mode == "unshadowed" or caster is None:
         count = len(rows)
         return ChunkResult(unshadowed_transfer(settings.order, normals), np.zeros(count),

@@ -10,7 +10,7 @@ import numpy as np
 
 from . import bake, estimator, interreflect, ray_caster, scheduling
 
-OPTIONAL_RECEIVER_ARRAYS = ("inward", "ray_groups", "surface_step")  # bake.Receiver's, in their order
+OPTIONAL_RECEIVER_ARRAYS = ("inward", "ray_groups", "surface_step", "against")  # bake.Receiver's, in their order
 
 
 def worker_process_command(python_prefix, job_file, out_file, chunk_indices):
@@ -32,6 +32,8 @@ def save_job(path, receivers, occluders, settings: bake.BakeSettings):
     arrays = {"occluder_vertices": occluders.vertices, "occluder_triangles": occluders.triangles,
               "occluder_hull": occluders.hull}
     arrays.update({f"polygon_{index}": polygon for index, polygon in enumerate(occluders.polygons)})
+    if occluders.against is not None:
+        arrays["occluder_against"] = occluders.against
     for index, receiver in enumerate(receivers):
         arrays[f"positions_{index}"] = receiver.positions
         arrays[f"normals_{index}"] = receiver.normals
@@ -48,7 +50,8 @@ def load_job(path):
         meta = json.loads(str(data["meta"]))
         flat = [data[f"polygon_{index}"] for index in range(sum(name.startswith("polygon_") for name in data.files))]
         occluders = bake.Occluders(data["occluder_vertices"], data["occluder_triangles"], data["occluder_hull"], flat,
-                                   meta["solved_vertices"], meta["engine"])
+                                   meta["solved_vertices"], meta["engine"],
+                                   data["occluder_against"] if "occluder_against" in data else None)
         receivers = [bake.Receiver(name, data[f"positions_{i}"], data[f"normals_{i}"], key,
                                    *(data[f"{part}_{i}"] if f"{part}_{i}" in data else None
                                      for part in OPTIONAL_RECEIVER_ARRAYS))

@@ -23,5 +23,6 @@ class RayCaster:
         self.vertices = occluders.vertices - self.center
         self.single_vertices = self.vertices.astype(np.float32)  # as an engine holds them
         self.triangles = occluders.triangles
+        self.against = occluders.against  # (P,) bool or None: core.bake.Occluders'
         self.polygons = [polygon - self.center for polygon in occluders.polygons]
         self.engine: RayEngine = engines.build(occluders.engine, self.vertices, self.triangles, 2.0 * diagonal)

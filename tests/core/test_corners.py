@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from prt_addon.core.corners import shading_points, unsplit_points
+from prt_addon.core.corners import against_faces, shading_points, unsplit_points
 
 # A unit cube, flat-shaded: 8 vertices, 6 quads, 24 corners; each vertex touches 3 faces with 3 normals.
 CUBE_FACES = {(0, 0, -1): (0, 2, 3, 1), (0, 0, 1): (4, 5, 7, 6), (0, -1, 0): (0, 1, 5, 4),
@@ -56,3 +56,25 @@ def test_unsplit_points_are_what_grouping_gives_when_every_corner_has_its_vertex
     for field in ("corner_points", "point_vertices", "point_normals"):
         np.testing.assert_array_equal(getattr(unsplit, field), getattr(grouped, field))
     assert unsplit.vertex_count == 5 and unsplit.extra_points == 0 and not unsplit.point_normals[4].any()
+
+
+def test_a_corner_whose_normal_points_against_its_first_triangle_is_against_its_face():
+    """Two triangles of a unit square in z = 0, of corners (0, 1, 2) wound up and (3, 4, 1) wound down; corners 5
+    and 6 on none. Every corner's normal is +z, except corner 4's, tilted 100° from +z: its z, -0.17, goes with the
+    second triangle's -z. Corner 1 lies on both, and is sampled on the first, which it goes with."""
+    positions = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 0, 0], [1, 1, 0], [1, 0, 0], [0, 1, 0]], dtype=float)
+    triangles = np.array([[0, 1, 2], [3, 4, 1]])
+    normals = np.tile([0.0, 0.0, 1.0], (7, 1))
+    normals[4] = [np.sin(np.radians(100.0)), 0.0, np.cos(np.radians(100.0))]
+    np.testing.assert_array_equal(against_faces(normals, positions, triangles), [0, 0, 0, 1, 0, 0, 0])
+
+
+def test_corners_against_their_faces_are_points_apart_from_the_corners_with_their_normal():
+    """Vertex 0's corners 0 and 1 share a normal, corner 1 against its face; vertex 1's two corners agree: vertex 0
+    becomes two points (the second marked against), vertex 1 one."""
+    corner_vertices = np.array([0, 0, 1, 1])
+    normals = np.tile([0.0, 0.0, 1.0], (4, 1))
+    points = shading_points(corner_vertices, normals, 2, np.array([False, True, False, False]))
+    np.testing.assert_array_equal(points.corner_points, [0, 2, 1, 1])
+    np.testing.assert_array_equal(points.against, [False, False, True])
+    assert shading_points(corner_vertices, normals, 2, np.zeros(4, dtype=bool)).against is None
