@@ -1,7 +1,8 @@
 """The rooms keep to their rules: core/ imports neither bpy (nor bmesh, gpu) nor anything above it, and nothing
 outside ui/ imports ui/ or the package's register() (only that register() imports the interface, to register it):
 the commands and blender/ work with the saved settings' schema (blender.schema) alone. In the core only the BVHTree
-ray engine (core/engines/bvhtree.py) imports mathutils; the rest is numpy. No module imports itself through others:
+ray engine (core/engines/bvhtree.py) imports mathutils, and nothing else in the package but the Embree engine
+(core/engines/embree.py) imports embreex; the rest is numpy. No module imports itself through others:
 prt_addon's import graph, imports inside functions included, has no cycle."""
 
 import ast
@@ -62,6 +63,12 @@ def test_nothing_outside_ui_imports_ui_or_the_packages_register(path):
 def test_only_the_bvhtree_engine_imports_mathutils(path):
     uses_mathutils = "mathutils" in {name.split(".")[0] for name in imports(path)}
     assert uses_mathutils == (path == PACKAGE / "core" / "engines" / "bvhtree.py")
+
+
+@pytest.mark.parametrize("path", modules(), ids=lambda p: str(p.relative_to(PACKAGE)))
+def test_only_the_embree_engine_imports_embreex(path):
+    uses_embreex = "embreex" in {name.split(".")[0] for name in imports(path)}
+    assert uses_embreex == (path == PACKAGE / "core" / "engines" / "embree.py")
 
 
 def test_the_rules_see_imports():

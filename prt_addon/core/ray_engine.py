@@ -58,6 +58,33 @@ class RayEngine(Protocol):
         """Every triangle nearer than `radius` to each of `points` (n, 3)."""
 
 
+def hits_at(origins, directions, triangle, distance, vertices, triangles) -> RayHits:
+    """The hits of rays (origins (c, 3), directions (c, k, 3)) on `triangle` (c, k) (−1 for none) at `distance`
+    (c, k) (NaN for none), with the barycentric weights of origin + distance · direction in the hit triangle of
+    `triangles` (T, 3) over `vertices` (P, 3), in float64: every engine that gives the same triangle and distance
+    gives the same weights."""
+    c, k = distance.shape
+    group, ray = np.nonzero(~np.isnan(distance))
+    points = origins[group] + distance[group, ray][:, None] * directions[group, ray]
+    barycentric = np.full((c, k, 3), np.nan)
+    barycentric[group, ray] = _barycentric(points, vertices[triangles[triangle[group, ray]]])
+    return RayHits(triangle, distance, barycentric)
+
+
+def _barycentric(points, corners) -> np.ndarray:
+    """(H, 3) weights of `points` (H, 3) in triangles `corners` (H, 3, 3); degenerate triangles get 1/3 each."""
+    a, b, c = corners[:, 0], corners[:, 1], corners[:, 2]
+    v0, v1, v2 = b - a, c - a, points - a
+    d00, d01, d11 = (v0 * v0).sum(1), (v0 * v1).sum(1), (v1 * v1).sum(1)
+    d20, d21 = (v2 * v0).sum(1), (v2 * v1).sum(1)
+    denominator = d00 * d11 - d01 * d01
+    safe = np.where(np.abs(denominator) > 0, denominator, 1.0)
+    v = np.clip((d11 * d20 - d01 * d21) / safe, 0.0, 1.0)
+    w = np.clip((d00 * d21 - d01 * d20) / safe, 0.0, 1.0 - v)
+    weights = np.stack([1.0 - v - w, v, w], axis=1)
+    return np.where((np.abs(denominator) > 0)[:, None], weights, 1.0 / 3.0)
+
+
 def scattered(values, live, missing):
     """`values` (n, ...) of the live rays as the values of every ray (`live`'s size, ...), `missing` for the
     others; `values` itself without a mask."""

@@ -8,7 +8,7 @@ import numpy as np
 from mathutils import Vector
 from mathutils.bvhtree import BVHTree
 
-from ..ray_engine import NearSurfaces, RayHits, scattered
+from ..ray_engine import NearSurfaces, RayHits, hits_at, scattered
 
 
 class BVHTreeEngine:
@@ -29,18 +29,13 @@ class BVHTreeEngine:
 
     def hits(self, origins, directions, live=None) -> RayHits:
         """See core.ray_engine.RayEngine. The barycentric weights are those of origin + distance · direction, in
-        float64 in the float64 triangles."""
+        float64 in the float64 triangles (core.ray_engine.hits_at)."""
         c, k = directions.shape[:2]
         found = np.array(list(map(itemgetter(2, 3), self._casts(origins, directions, live))),
                          dtype=np.float64).reshape(-1, 2)
         triangle = np.nan_to_num(found[:, 0], nan=-1.0).astype(np.int64)  # both NaN on a miss
-        triangle = scattered(triangle, live, -1).reshape(c, k)
-        distance = scattered(found[:, 1], live, np.nan).reshape(c, k)
-        group, ray = np.nonzero(~np.isnan(distance))
-        points = origins[group] + distance[group, ray][:, None] * directions[group, ray]
-        barycentric = np.full((c, k, 3), np.nan)
-        barycentric[group, ray] = _barycentric(points, self.vertices[self.triangles[triangle[group, ray]]])
-        return RayHits(triangle, distance, barycentric)
+        return hits_at(origins, directions, scattered(triangle, live, -1).reshape(c, k),
+                       scattered(found[:, 1], live, np.nan).reshape(c, k), self.vertices, self.triangles)
 
     def nearest(self, points, radius) -> NearSurfaces:
         """See core.ray_engine.RayEngine. The normals are the tree's own, computed here from the triangles."""
@@ -89,16 +84,3 @@ def _vectors(vectors, count) -> np.ndarray:
     """(count, 3) float64 from an iterable of mathutils Vectors (float32: exact in float64)."""
     return np.fromiter(chain.from_iterable(vectors), dtype=np.float64, count=3 * count).reshape(count, 3)
 
-
-def _barycentric(points, corners) -> np.ndarray:
-    """(H, 3) weights of `points` (H, 3) in triangles `corners` (H, 3, 3); degenerate triangles get 1/3 each."""
-    a, b, c = corners[:, 0], corners[:, 1], corners[:, 2]
-    v0, v1, v2 = b - a, c - a, points - a
-    d00, d01, d11 = (v0 * v0).sum(1), (v0 * v1).sum(1), (v1 * v1).sum(1)
-    d20, d21 = (v2 * v0).sum(1), (v2 * v1).sum(1)
-    denominator = d00 * d11 - d01 * d01
-    safe = np.where(np.abs(denominator) > 0, denominator, 1.0)
-    v = np.clip((d11 * d20 - d01 * d21) / safe, 0.0, 1.0)
-    w = np.clip((d00 * d21 - d01 * d20) / safe, 0.0, 1.0 - v)
-    weights = np.stack([1.0 - v - w, v, w], axis=1)
-    return np.where((np.abs(denominator) > 0)[:, None], weights, 1.0 / 3.0)
