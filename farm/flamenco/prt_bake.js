@@ -46,11 +46,14 @@ const JOB_TYPE = {
           description: "Interreflection bounces: a whole number, or auto" },
         { key: "bounce_tolerance", type: "float", default: 0.001, visible: "submission",
           description: "Relative error that auto bounces may leave out" },
+        { key: "ray_engine", type: "string", default: "auto", choices: ["auto", "embree", "bvhtree"],
+          visible: "submission",
+          description: "What casts the rays; auto: Embree where installed, else BVHTree (the shards must agree)" },
     ],
 };
 
 const BAKE_SETTINGS = ["mode", "order", "samples", "target_error", "max_samples", "seed", "bounces",
-                       "bounce_tolerance"];
+                       "bounce_tolerance", "ray_engine"];
 
 function compileJob(job) {
     const settings = job.settings;

@@ -160,6 +160,7 @@ class Execution(WrappingJob):
         chosen = [self.chosen[index] for index in self.kept]
         results = self.main.results()[: len(receivers)]  # bouncers are not stored
         summary = self.main.summary(results)
+        summary.ray_engine = self.plan.request.ray_engine if self.plan.occluders is not None else ""
         vertices = {receiver.name: receiver.vertices for receiver in self.plan.request.receivers}
         for receiver, layout in zip(receivers, chosen):
             summary.per_object[receiver.name].update(vertices=vertices[receiver.name],

@@ -18,9 +18,10 @@ from .store import BakeReport, store
 PART_JOBS = ("bake", "probes")  # the jobs whose chunks a part holds, by name: the vertices', the probes'
 
 
-def farm_plan(context, settings: BakeSettings, names) -> BakePlan:
-    """The plan of a bake that farm shards bake and a merge stores: every receiver per vertex."""
-    return plan_bake(read_request(context, settings, names, farm=True))
+def farm_plan(context, settings: BakeSettings, names, casts: bool = True) -> BakePlan:
+    """The plan of a bake that farm shards bake and a merge stores: every receiver per vertex. `casts`: False for
+    the merge's, which casts no ray (blender.request.read_request)."""
+    return plan_bake(read_request(context, settings, names, farm=True, casts=casts))
 
 
 def bake_shard(context, settings: BakeSettings, names, shard, out: str, stopwatch: shards.Stopwatch,
@@ -56,7 +57,7 @@ def merge_parts(context, paths, log=None, plan: BakePlan | None = None) -> BakeR
     parts = [(path, part_file.read_part(path)) for path in shards.part_paths(paths)]
     chosen = shards.chosen_bake([info for _, info in parts])
     if plan is None:
-        plan = farm_plan(context, BakeSettings(**chosen.settings), chosen.receivers)
+        plan = farm_plan(context, BakeSettings(**chosen.settings), chosen.receivers, casts=False)
     problems = shards.refusals(parts, part_info(plan, (0, chosen.shards)))
     if problems:
         raise InputError("cannot merge: " + "; ".join(problems) + "; nothing was written")
@@ -65,6 +66,7 @@ def merge_parts(context, paths, log=None, plan: BakePlan | None = None) -> BakeR
     loaded = [part_file.load_part(path, info, shape) for path, info in parts]
     chunks = {name: [result for held in loaded for result in held[index]] for index, name in enumerate(PART_JOBS)}
     infos = [info for _, info in parts]
+    plan.request.ray_engine = chosen.ray_engine  # the shards cast the rays
     from_parts = executors.FromParts(chunks.__getitem__, sum(info.time_s for info in infos),
                                      sum(info.rays_s for info in infos), sum(info.workers for info in infos))
     return store(plan, execute(plan, from_parts).run(log=log))
@@ -77,7 +79,8 @@ def part_info(plan: BakePlan, shard) -> shards.PartInfo:
         shard=shard[0], shards=shard[1], chunks=len(scheduling.chunk_rows([surface.receiver for surface in solved])),
         probe_chunks=len(scheduling.chunk_rows(plan.between.receivers)),
         scene=os.path.basename(bpy.data.filepath), surfaces=[surface.receiver.name for surface in solved],
-        receivers=plan.names, settings=asdict(plan.settings), fingerprints=plan.request.fingerprints)
+        receivers=plan.names, settings=asdict(plan.settings), fingerprints=plan.request.fingerprints,
+        ray_engine=plan.request.ray_engine)
 
 
 def build_ray_tree(plan: BakePlan):

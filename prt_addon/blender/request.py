@@ -3,9 +3,11 @@ numpy arrays; objects by name). The plan, the execution and the checks read this
 move while a modal bake runs; only storing writes, to the receivers named here.
 """
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
-from ..core import bake
+import bpy
+
+from ..core import bake, engines
 from ..core.errors import InputError
 from ..core.progress import old_objects_frozen
 from . import fingerprint, geometry, materials, texel_bake
@@ -36,6 +38,7 @@ class BakeRequest:
     problems: list = field(default_factory=list)   # one sentence per object that will not be baked
     notes: list = field(default_factory=list)      # baked, but the user should know
     farm: bool = False                             # farm shards bake it (every receiver per vertex)
+    ray_engine: str = ""                           # the engine its settings name, with its version, as reported
 
     @property
     def names(self) -> list[str]:
@@ -44,18 +47,23 @@ class BakeRequest:
 
 @old_objects_frozen()  # reading makes many lists for Blender and numpy, as a job's steps do
 def read_request(context, settings: bake.BakeSettings, object_names=None, storage_options=None,
-                 farm: bool = False) -> BakeRequest:
-    """The bake of `object_names` (else the selected meshes, else every visible mesh) as the scene is now.
+                 farm: bool = False, casts: bool = True) -> BakeRequest:
+    """The bake of `object_names` (else the selected meshes, else every visible mesh) as the scene is now, its
+    settings naming the ray engine that casts its rays here (core.engines.choose), which its occluders then carry.
     storage_options: texel_bake.TexelOptions fields that override every receiver's own (the command line's).
-    `farm`: shards bake it and a merge stores it, so every receiver must be stored per vertex. Raises InputError,
-    naming the problem, where nothing can be baked."""
+    `farm`: shards bake it and a merge stores it, so every receiver must be stored per vertex. `casts`: False for a
+    merge of farm parts, whose engine (the parts') need not be installed here. Raises InputError, naming the
+    problem, where nothing can be baked."""
     problems = settings.problems()
     if problems:
         raise InputError("; ".join(problems))
+    engine, note = (settings.ray_engine, None) if not casts else engines.choose(settings.ray_engine)
+    settings = replace(settings, ray_engine=engine)
     overrides = storage_options or {}
     context.view_layer.update()  # objects linked by scripts join the view layer only on update
     depsgraph = context.evaluated_depsgraph_get()
-    request = BakeRequest(settings, [], farm=farm)
+    request = BakeRequest(settings, [], farm=farm, ray_engine=ray_engine_label(engine) if casts else "")
+    request.notes += [note] if note else []
     bouncing = settings.mode == "interreflected"
     objects, meshes = [], {}
     for ob in geometry.receivers_from_selection(context, object_names):
@@ -82,6 +90,7 @@ def read_request(context, settings: bake.BakeSettings, object_names=None, storag
     if settings.mode != "unshadowed":
         solved = [receiver.surface for receiver in request.receivers] + request.bouncers
         request.occluders, sources = occluders_from_depsgraph(depsgraph, solved)
+        request.occluders.engine = engine
         if sources <= set(request.names):
             request.notes.append("no visible mesh besides the receivers casts shadows; "
                                  "each receiver is shadowed by the receivers only")
@@ -91,6 +100,11 @@ def read_request(context, settings: bake.BakeSettings, object_names=None, storag
         if settings.mode != "unshadowed":
             receiver.subsurface = materials.subsurface_material(ob)
     return request
+
+
+def ray_engine_label(name: str) -> str:
+    """The engine `name` as reports name it, with its version: BVHTree's is this Blender's."""
+    return engines.label(name, f"Blender {bpy.app.version_string}")
 
 
 def _bouncing_surfaces(context, depsgraph, receiver_names, notes) -> list:

@@ -49,6 +49,8 @@ def store(plan: BakePlan, results: BakeResults) -> BakeReport:
                      if key in summary.per_object[name]}}
         if summary.bounces is not None:
             fields["bounces"] = summary.bounces
+        if summary.ray_engine:
+            fields["ray_engine"] = summary.ray_engine
         layout.write(bpy.data.objects[(name, None)].data, result, fields, settings)
     lattices = [f"texel lattices: {results.lattices}"] if results.lattices else []
     return BakeReport(summary, results.names, results.problems, notes, mixed, results.decisions + lattices)

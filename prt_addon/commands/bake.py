@@ -1,6 +1,7 @@
 """`prt bake`: bake and save, with progress lines, the summary line and an optional JSON report."""
 
 import argparse
+from dataclasses import replace
 
 import bpy
 
@@ -11,7 +12,7 @@ from ..blender.fingerprint import stale_line, stale_receivers
 from ..blender.plan import plan_bake
 from ..blender.request import read_request
 from ..blender.store import store
-from ..core import checks, presets, settings as spec
+from ..core import checks, engines, presets, settings as spec
 from ..core.bake import BakeSettings
 from ..core.errors import InputError
 from ..core.shards import Stopwatch, shard_of
@@ -116,6 +117,10 @@ def run(args, in_blender: bool) -> int:
         if not receivers:
             return 0
     if args.dask:
+        # The engine is chosen here, once: every shard, on whatever machine, casts with it.
+        engine, note = engines.choose(settings.ray_engine)
+        settings = replace(settings, ray_engine=engine)
+        warn([note] if note else [])
         with farm_dask.dask_bake(args.dask, bpy.data.filepath, settings, receivers, log) as cluster:
             # Planned once, while the cluster starts: local shards are forks that bake their share of it (with its
             # ray tree, built before they fork), and the merge stores the parts into it.

@@ -30,6 +30,8 @@ class BakeSettings:
     seed: int = spec.SEED.default
     bounces: int | None = None  # interreflected: a count, or None for 'auto' (until the tail < tolerance)
     bounce_tolerance: float = spec.BOUNCE_TOLERANCE.default
+    # 'auto' until the request resolves it to the engine that casts the rays (core.engines.choose)
+    ray_engine: str = spec.RAY_ENGINE.default
 
     def problems(self) -> list[str]:
         """Every reason these settings cannot bake, as sentences for the user."""

@@ -57,9 +57,9 @@ def set_digest(digests) -> str:
 def settings_values(settings: BakeSettings) -> dict:
     """The settings a bake of this mode reads, and the stored layout's version. Settings the mode ignores (samples
     for an unshadowed bake, bounces for a shadowed one, max samples without a target error) are left out, so
-    changing them leaves the bake up to date."""
+    changing them leaves the bake up to date; so is the ray engine, whose bakes agree but for float32 rounding."""
     values = asdict(settings)
-    ignored = set()
+    ignored = {"ray_engine"}
     if settings.mode == "unshadowed":
         ignored |= {"samples", "target_error", "max_samples", "replicates", "seed"}
     if not settings.target_error:

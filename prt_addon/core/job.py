@@ -55,6 +55,7 @@ class Summary:
     est_interp_max_rel_error: float | None = None
     interp_points: int = 0
     interp_rays: int = 0
+    ray_engine: str = ""  # the engine that cast the rays, with its version ("" where none was cast)
 
     def line(self) -> str:
         bounced = (f", {self.bounces} bounces in {self.phases_s.get('bounces_s', 0.0):.2f} s "
@@ -66,8 +67,9 @@ class Summary:
         between = ("" if self.est_interp_rms_rel_error is None else
                    f"; between vertices est. RMS {self.est_interp_rms_rel_error:.4f}, max "
                    f"{self.est_interp_max_rel_error:.4f} ({self.interp_points} points, {self.interp_rays} rays)")
+        engine = f" with {self.ray_engine}" if self.ray_engine else ""
         return (f"PRT bake: {self.objects} objects, {self.vertices} vertices{split}, order {self.order} {self.mode}: "
-                f"{self.time_s:.2f} s, {self.rays} rays, {self.rays_per_s / 1e3:.0f} k rays/s, "
+                f"{self.time_s:.2f} s, {self.rays} rays, {self.rays_per_s / 1e3:.0f} k rays/s{engine}, "
                 f"{self.skipped_vertices} vertices exact without rays, "
                 f"est. RMS rel. error {self.est_rms_rel_error:.4f}, max {self.est_max_rel_error:.4f}{between}"
                 f"{bounced}")

@@ -60,11 +60,18 @@ BOUNCE_TOLERANCE = Setting("bounce_tolerance", "Tolerance", "Relative error that
                            1e-3, 1e-8, 0.5)
 ORDER_TARGET = Setting("order_target", "Target", "Order from lights: the lowest order whose predicted shading error "
                        "under the scene's lights is at most this", 0.03, 0.001, 0.5)
+RAY_ENGINE = Setting("ray_engine", "Ray Engine", "What casts the rays (the bakes agree but for float32 rounding)",
+                     "auto", choices=(
+    ("auto", "Auto", "Embree where it is installed, else Blender's BVHTree"),
+    ("embree", "Embree", "Intel's Embree (the embreex package): whole batches of rays in C, many times faster"),
+    ("bvhtree", "BVHTree", "Blender's own ray tree, one ray per Python call: everywhere Blender runs"),
+))
 WORKERS = Setting("workers", "Workers", "Processes that cast rays in parallel (the result is the same); 0: one per "
                   "core of this machine", 0, 0, MAX_WORKERS)
 
-# What BakeSettings holds, in the order the panel and the help show them; workers only change how fast.
-BAKE = (MODE, ORDER, SAMPLES, TARGET_ERROR, MAX_SAMPLES, SEED, BOUNCES, BOUNCE_TOLERANCE)
+# What BakeSettings holds, in the order the panel and the help show them; workers only change how fast. The ray
+# engine is held because a bake's bits follow it (its farm shards must share it), though not what it computes.
+BAKE = (MODE, ORDER, SAMPLES, TARGET_ERROR, MAX_SAMPLES, SEED, BOUNCES, BOUNCE_TOLERANCE, RAY_ENGINE)
 
 # Per object: where its transfer is stored (blender.texel_bake). The command line's options apply to every receiver.
 STORAGE = Setting("storage", "Storage", "Where the transfer is stored", "vertex", choices=(

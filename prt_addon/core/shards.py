@@ -6,8 +6,9 @@ chunk's result where a one-process bake does, and bounces interreflections from 
 A part file is an .npz: its chunks' results as job_file saves a worker's (transfer, standard error, rays, which
 vertices were exact without rays, and in interreflected bakes the blocked rays' hit records), and `part`, a JSON
 string (PartInfo): the shard K/N, the bake's number of chunks, the scene file's name, the solved surfaces and the
-receivers, the settings, each receiver's fingerprint, the shard's seconds (wall and CPU), rays, seconds baking and
-workers. A part is read as untrusted input (core.part_file).
+receivers, the settings (the ray engine among them: parts of one bake share it), each receiver's fingerprint, the
+shard's seconds (wall and CPU), rays, seconds baking and workers, and its engine as a report names it. A part is
+read as untrusted input (core.part_file).
 """
 
 from collections import Counter
@@ -25,8 +26,9 @@ from .errors import InputError
 
 # Also names how chunks are cut and what the description holds: 4 parts a split vertex's points about their mean
 # normal, 5 gives chunks of shared ray groups twice the groups (scheduling.SHARED_CHUNK_FACTOR), 6 has each shard's
-# seconds baking and workers (rays_s, workers: a merged bake's rays per second).
-PART_FORMAT = "prt-part-6"
+# seconds baking and workers (rays_s, workers: a merged bake's rays per second), 7 the ray engine (in the settings,
+# and as the report names it).
+PART_FORMAT = "prt-part-7"
 PROBES = "probe_"  # the prefix of the probes' arrays
 
 
@@ -46,6 +48,7 @@ class PartInfo:
     rays: int = 0          # the vertices' and the probes'
     rays_s: float = 0.0    # seconds baking: the span a one-process bake's rays per second are over (its job's)
     workers: int = 1       # the processes the shard's bake asked for, as a one-process bake's report counts them
+    ray_engine: str = ""   # the engine that cast its rays, with its version, as a report names it
 
     def same_bake(self) -> tuple:
         """What must match between parts of one bake, and the scene they are merged into, besides shard K."""
@@ -168,6 +171,10 @@ def _part_problem(info: PartInfo, current: PartInfo) -> str | None:
         return f"is stale ({', '.join(changed)} since it was baked)"
     if info.shards != current.shards:
         return f"is shard {info.shard}/{info.shards}, the others are of {current.shards}"
+    engine, wanted = info.settings.get("ray_engine"), current.settings.get("ray_engine")
+    if engine != wanted:  # the engines' bakes agree, but not bit for bit
+        return (f"was baked with the ray engine {shown(str(engine))}, the others with {wanted}: bake every shard with "
+                f"one (--ray-engine)")
     return None
 
 

@@ -4,6 +4,8 @@ active object's stored bake. The Lights and Display panels are in lights.py, Val
 import bpy
 
 from ..blender import layouts, storage
+from ..blender.request import ray_engine_label
+from ..core import engines
 from .checks import draw_checklist
 from .presets import draw_presets
 from .stale import draw_status
@@ -39,6 +41,11 @@ class PRT_PT_bake(SidebarPanel, bpy.types.Panel):
         sub.enabled = settings.target_error > 0
         sub.prop(settings, "max_samples")
         column.prop(settings, "workers")
+        column.prop(settings, "ray_engine")
+        if settings.ray_engine == "auto":
+            engine, note = engines.choose("auto")
+            column.label(text=f"Casts with {ray_engine_label(engine)}" + (": Embree is not installed" if note else ""),
+                         icon="INFO" if note else "NONE")
         column.prop(settings, "seed")
         if settings.mode == "interreflected":
             bounce = layout.column()
@@ -108,6 +115,8 @@ class PRT_PT_bake_info(ActiveMeshPanel, bpy.types.Panel):
         column = layout.column(align=True)
         column.label(text=f"Order {meta['order']}, {meta['mode']}, {meta['samples']} samples")
         column.label(text=f"{meta['rays']:,} rays in {meta.get('time_s', 0.0):.1f} s")
+        if "ray_engine" in meta:
+            column.label(text=f"Cast with {meta['ray_engine']}")
         column.label(text=f"Est. error RMS {meta['est_rms_rel_error']:.4f}, max {meta['est_max_rel_error']:.4f}")
         if "est_interp_rms_rel_error" in meta:
             column.label(text=f"Between vertices RMS {meta['est_interp_rms_rel_error']:.4f}, "

@@ -201,7 +201,7 @@ def test_the_good_part_and_its_deflated_copy_are_read_whole(tmp_path):
     (part_bytes({**GOOD, "transfer_1": GOOD["transfer_1"].astype(np.float32)}), "float32, not float64"),
     (part_bytes(with_description(shards=10 ** 9)), "is shard 1/1000000000, the others are of 1"),
     (part_bytes(with_description(shards="1")), "whose shards is '1', not a whole number"),
-    (part_bytes(with_description(format="prt-part-5")), "of another format than prt-part-6"),
+    (part_bytes(with_description(format="prt-part-5")), "of another format than prt-part-7"),
     (part_bytes(with_description(settings={**SETTINGS, "order": 2.0})), "setting order 2.0, not of the type int"),
     (part_bytes(with_description(settings={**SETTINGS, "samples": 10 ** 9})), "settings no bake takes: samples"),
     (archive([(key, npy_header((1 << 27, 4)) + bytes(1 << 20) if key == "transfer_0" else npy(value))
