@@ -1,6 +1,7 @@
 """Same bake: every stored array of four fixed bakes in one .npz, and a bit-for-bit comparison of two such files.
 
     .venv/bin/python benchmarks/same_bake.py OUT.npz [--scenes demo,cow,texel,farm] [--quick] [--assets FOLDER]
+                                             [--ray-engine auto|embree|bvhtree]
     .venv/bin/python benchmarks/same_bake.py --compare A.npz B.npz
 
 A change that must not change what a bake stores (a restructuring, a faster engine) is checked by capturing on the
@@ -102,10 +103,12 @@ def texel_scene():
     ball.scale, ball.location = (0.5, 0.5, 0.5), (0.0, 0.0, 1.5)
 
 
-def bakes(quick: bool, cow: str) -> dict:
+def bakes(quick: bool, cow: str, ray_engine: str | None = None) -> dict:
     """bake name: (scene builder, [command lines, each a list of `prt` arguments with the paths {scene}, {step},
-    {part_1}, {part_2} and {out} filled in per bake]); the last command writes {out}."""
-    common = ["--order", "4", "--seed", str(SEED), "--samples", str(QUICK_SAMPLES if quick else SAMPLES)]
+    {part_1}, {part_2} and {out} filled in per bake]); the last command writes {out}. `ray_engine`: the Ray Engine
+    every bake casts with (None: the command line's default)."""
+    common = ["--order", "4", "--seed", str(SEED), "--samples", str(QUICK_SAMPLES if quick else SAMPLES),
+              *(["--ray-engine", ray_engine] if ray_engine else [])]
     cow_shadowed = [*common, "--mode", "shadowed", "--objects", "Cow,Floor"]
     interreflected = [*common, "--mode", "interreflected", "--bounces", "2", "--objects", "Cow,Floor"]
     cow_scene_ = functools.partial(cow_scene, cow)
@@ -181,12 +184,12 @@ def read_baked(path, scene: str) -> dict:
     return arrays
 
 
-def capture(out: str, chosen: list[str], quick: bool, cow: str) -> dict:
+def capture(out: str, chosen: list[str], quick: bool, cow: str, ray_engine: str | None = None) -> dict:
     """Builds, bakes and reads every chosen scene; writes all arrays to `out` (whole: a temporary file renamed)."""
     import bpy  # noqa: F401  (before anything that imports mathutils)
     arrays = {}
     with tempfile.TemporaryDirectory(prefix="same_bake_") as folder:
-        for name, (build, commands) in bakes(quick, cow).items():
+        for name, (build, commands) in bakes(quick, cow, ray_engine).items():
             if not of_scene(name, chosen):
                 continue
             start = time.perf_counter()
@@ -207,7 +210,10 @@ def capture(out: str, chosen: list[str], quick: bool, cow: str) -> dict:
 
 # -- comparing ---------------------------------------------------------------------------------------------------
 def difference(a: np.ndarray, b: np.ndarray) -> str:
-    """`equal` when the arrays are bit for bit the same (shape, type and bytes), else what differs."""
+    """`equal` when the arrays are bit for bit the same (shape, type and bytes), else what differs: for texts (the
+    metadata), which keys."""
+    if a.dtype.kind in "US" and b.dtype.kind in "US" and a.shape == b.shape == ():
+        return "equal" if str(a) == str(b) else "DIFFERS: " + text_difference(str(a), str(b))
     if a.dtype != b.dtype or a.shape != b.shape:
         return f"DIFFERS: {a.dtype}{list(a.shape)} against {b.dtype}{list(b.shape)}"
     if a.tobytes() == b.tobytes():
@@ -216,8 +222,6 @@ def difference(a: np.ndarray, b: np.ndarray) -> str:
         unequal = a.view(f"u{a.itemsize}") != b.view(f"u{b.itemsize}")
         largest = float(np.nanmax(np.abs(a.astype(np.float64) - b.astype(np.float64)))) if a.size else 0.0
         return f"DIFFERS: {int(unequal.sum())} of {a.size} values, largest difference {largest:.3g}"
-    if a.dtype.kind in "US":
-        return "DIFFERS: " + text_difference(str(a), str(b))
     return f"DIFFERS: {int((a != b).sum())} of {a.size} values"
 
 
@@ -255,6 +259,8 @@ def main(argv=None) -> int:
     parser.add_argument("--scenes", default=",".join(SCENES), help=f"comma-separated, of {', '.join(SCENES)}")
     parser.add_argument("--quick", action="store_true", help=f"{QUICK_SAMPLES} samples instead of {SAMPLES}")
     parser.add_argument("--assets", default=ASSETS, help="the folder holding cow.obj (default: %(default)s)")
+    parser.add_argument("--ray-engine", choices=("auto", "embree", "bvhtree"),
+                        help="the Ray Engine every bake casts with (default: the command line's)")
     args = parser.parse_args(argv)
     if args.compare:
         missing = [path for path in args.compare if not os.path.isfile(path)]
@@ -268,7 +274,7 @@ def main(argv=None) -> int:
     cow = os.path.join(args.assets, "cow.obj")
     if any(of_scene(name, chosen) for name in ("cow", "farm")) and not os.path.isfile(cow):
         parser.error(f"{cow} is missing (give the folder of the public test meshes with --assets)")
-    capture(args.out, chosen, args.quick, cow)
+    capture(args.out, chosen, args.quick, cow, args.ray_engine)
     return 0
 
 
