@@ -77,9 +77,10 @@ def fresh_demo_scene():
 
 
 def scene_geometry():
-    """Receivers and occluders exactly as the bake gathers them (nothing is baked)."""
+    """Receivers and occluders exactly as the bake gathers them (nothing is baked), cast with BVHTree: the
+    engine whose bare ray_cast loop the bake is measured against (benchmarks/engines.py has both engines)."""
     fresh_demo_scene()
-    plan = plan_bake(read_request(bpy.context, bake.BakeSettings(order=ORDER)))
+    plan = plan_bake(read_request(bpy.context, bake.BakeSettings(order=ORDER, ray_engine="bvhtree")))
     return [receiver.layout.receiver for receiver in plan.receivers], plan.occluders
 
 

@@ -88,6 +88,28 @@ def test_bake_smoke_run():
     assert rays > 1000
 
 
+def test_engines_smoke_run():
+    out = run_benchmark("engines", "--quick")
+    for case in ("sphere flat", "cylinder"):
+        match = found(rf"^   {case}\s+\d+ faces\s+{{n}} rays  occlusion\s+{{n}} %  face\s+{{n}} %", out)
+        assert number(match.group(1)) > 1000 and 99.0 <= number(match.group(3)) <= number(match.group(2)) <= 100.0
+    worst = goal_line(r"^   agreement on the face hit, worst case {n} %  goal >= 99\.99:", out, ">=", 99.99)
+    assert worst <= 100.0
+    for scene in ("demo", "dense"):
+        match = found(rf"^   {scene}\s+\d+ faces\s+{{n}} rays: Embree\s+{{n}} M rays/s, BVHTree\s+{{n}} M rays/s, "
+                      rf"Embree ÷ BVHTree\s+{{n}}×  goal >= 15: (PASS|MISS)", out)
+        rays, embree, tree, ratio = (number(group) for group in match.groups()[:4])
+        assert ratio == pytest.approx(embree / tree, rel=0.02) and rays > 1000
+        judged(ratio, ">=", 15, match.group(5))
+    for engine in ("embree", "bvhtree"):
+        match = found(rf"^   {engine}\s+2 workers\s+{{n}} s; one process\s+{{n}} s: casting\s+{{n}} s, contact search"
+                      rf"\s+{{n}} s, the rest\s+{{n}} s", out)
+        total, casting, contact, rest = (number(group) for group in match.groups()[1:])
+        assert casting + contact + rest == pytest.approx(total, abs=0.02)
+    goal_line(r"^   BVHTree ÷ Embree wall time {n}×  goal >= 5:", out, ">=", 5)
+    number(found(r"^4\. Memory over the dense scene \(\d+ faces\): BVHTree {n} MB, Embree engine {n} MB", out).group(2))
+
+
 def test_estimator_study_smoke_run():
     out = run_benchmark("estimator_study", "--quick")
     seed_error = number(found(r"seed's estimator at 256 rays: RMS error {n}", out).group(1))

@@ -1,0 +1,341 @@
+"""The ray engines side by side (issue 32): Embree (embreex) and BVHTree casting the very same rays, in one run.
+
+Every ray batch a bake asks its engine (occluded or hits) is recorded as the Embree bake casts it; the batches do not
+depend on the engine's answers (a round's rays are fixed by the seed), so both engines replay exactly the bake's rays.
+
+1. Agreement: the demo scene and every case of benchmarks/assets.py baked at the defaults (256 samples), every
+   recorded ray replayed through both engines' `hits`: the share of rays whose occlusion agrees and of hits on the
+   same triangle (goal ≥ 99.99 %), and why the rest differ, judged in float64 on the float32 corners: a crossing
+   within 1e-4 of a face's edge (rounding decides whether the ray is inside), two faces within 1e-5 of one distance,
+   or neither (unexplained).
+2. Casts alone: rays/s of `occluded` over the recorded batches, the engines alternating batch by batch, best of
+   the passes; Embree ÷ BVHTree (goal ≥ 15×) on the demo and on the demo with its torus subdivided three times
+   (1.4 M triangles), the rays of 2048 floor and wall vertices.
+3. The whole demo bake at 256 samples with 2 workers: wall time, BVHTree ÷ Embree (goal ≥ 5×); and one process's
+   bake split into casting (occluded, hits), the contact search (nearest, BVHTree in both) and the rest.
+4. Memory: resident memory each engine adds, built over the dense scene (the Embree engine holds the contact
+   search's BVHTree too).
+
+Run from the repository root:  .venv/bin/python benchmarks/engines.py [--quick] [--json PATH] [--assets FOLDER]
+"""
+
+import argparse
+from collections import Counter
+from dataclasses import replace
+import gc
+import os
+import sys
+import time
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+sys.path.insert(0, ROOT)
+
+import bpy  # noqa: E402  (bpy before mathutils, which the core imports)
+import numpy as np  # noqa: E402
+
+from benchmarks import assets  # noqa: E402
+from prt_addon.blender.execute import execute, local_executor  # noqa: E402
+from prt_addon.blender.plan import plan_bake  # noqa: E402
+from prt_addon.blender.request import read_request, ray_engine_label  # noqa: E402
+from prt_addon.commands.common import schema_registered, write_json  # noqa: E402
+from prt_addon.core import bake, engines, executors, job  # noqa: E402
+
+ENGINES = ("embree", "bvhtree")
+EDGE = 1e-4   # barycentric margin within which float32 rounding decides whether a ray crosses a face
+TIE = 1e-5    # relative distance within which two faces are at one distance
+GOALS = {"agreement": (">=", 99.99), "casts": (">=", 15.0), "bake": (">=", 5.0)}  # per cent, ratios
+QUICK_CASES = ["sphere flat", "cylinder"]
+
+
+class Recording:
+    """Stands in for a bake's engine: answers with it, keeping every batch of rays it is asked, as asked."""
+
+    def __init__(self, engine):
+        self.engine, self.max_distance, self.batches = engine, engine.max_distance, []
+
+    def _kept(self, origins, directions, live):
+        self.batches.append((origins.copy(), directions.copy(order="K"), None if live is None else live.copy()))
+
+    def occluded(self, origins, directions, live=None):
+        self._kept(origins, directions, live)
+        return self.engine.occluded(origins, directions, live)
+
+    def hits(self, origins, directions, live=None):
+        self._kept(origins, directions, live)
+        return self.engine.hits(origins, directions, live)
+
+    def nearest(self, points, radius):
+        return self.engine.nearest(points, radius)
+
+
+class Timed:
+    """Stands in for a bake's engine: answers with it, adding up the seconds of each question."""
+
+    def __init__(self, engine):
+        self.engine, self.max_distance, self.seconds = engine, engine.max_distance, Counter()
+
+    def __getattr__(self, question):
+        answer = getattr(self.engine, question)
+
+        def timed(*arguments):
+            start = time.perf_counter()
+            try:
+                return answer(*arguments)
+            finally:
+                self.seconds[question] += time.perf_counter() - start
+        return timed
+
+
+def planned(settings, objects=None):
+    """The bake of the scene as it is now: its plan, its ray caster built."""
+    plan = plan_bake(read_request(bpy.context, settings, objects))
+    plan.occluders.ray_caster()
+    return plan
+
+
+def rays_in(batches) -> int:
+    return sum(directions.shape[0] * directions.shape[1] if live is None else int(live.sum())
+               for _, directions, live in batches)
+
+
+def dense_demo(levels: int):
+    """The demo scene with its torus subdivided `levels` times: 1.4 M triangles at 3."""
+    assets.fresh_file()
+    torus = assets.sample_scenes.build_demo_scene()["torus"]
+    torus.modifiers.new("Subdivision", "SUBSURF").levels = levels
+
+
+# -- 1. agreement --------------------------------------------------------------------------------------------------
+def recorded_bake(settings, objects=None):
+    """Bakes the scene as it is now with Embree, recording its rays → (caster, recorded batches)."""
+    plan = planned(replace(settings, ray_engine="embree"), objects)
+    caster = plan.occluders.ray_caster()
+    caster.engine = Recording(caster.engine)
+    execute(plan, executors.InProcess()).run()
+    return caster, caster.engine.batches
+
+
+def agreement(caster, batches) -> dict:
+    """Both engines' hits of every recorded ray: how many rays, how many agree on occlusion and on the face hit, and
+    why the others differ."""
+    tree = engines.build("bvhtree", caster.vertices, caster.triangles, caster.engine.max_distance)
+    embree = caster.engine.engine
+    corners = caster.single_vertices.astype(np.float64)[caster.triangles]
+    counts, reasons, worst_distance = Counter(), Counter(), 0.0
+    for origins, directions, live in batches:
+        mine, theirs = embree.hits(origins, directions, live), tree.hits(origins, directions, live)
+        cast = np.ones(mine.found.shape, dtype=bool) if live is None else live
+        found_differs = cast & (mine.found != theirs.found)
+        face_differs = cast & mine.found & theirs.found & (mine.triangle != theirs.triangle)
+        same = cast & mine.found & theirs.found & (mine.triangle == theirs.triangle)
+        counts.update(rays=int(cast.sum()), hits=int((cast & theirs.found).sum()),
+                      found_differs=int(found_differs.sum()), face_differs=int(face_differs.sum()))
+        if same.any():
+            gap = np.abs(mine.distance[same] - theirs.distance[same]).max() / tree.max_distance
+            worst_distance = max(worst_distance, float(gap))
+        for group, ray in zip(*np.nonzero(found_differs | face_differs)):
+            reasons[why_they_differ(corners, origins[group], directions[group, ray], tree.max_distance)] += 1
+    return {**counts, "reasons": dict(reasons), "worst_distance": worst_distance,
+            "occlusion_agreement": 1.0 - counts["found_differs"] / max(1, counts["rays"]),
+            "face_agreement": 1.0 - (counts["found_differs"] + counts["face_differs"]) / max(1, counts["rays"])}
+
+
+def why_they_differ(corners, origin, direction, reach) -> str:
+    """Why float32 rounding may decide this ray, from every face (`corners` (T, 3, 3): the float32 corners, as the
+    engines hold them) it crosses before `reach`, by Möller–Trumbore in float64: 'edge', 'tie' or 'unexplained'."""
+    origin, direction = (np.asarray(value, dtype=np.float32).astype(np.float64) for value in (origin, direction))
+    e1, e2 = corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]
+    p = np.cross(direction, e2)
+    det = np.einsum("td,td->t", e1, p)
+    s = origin - corners[:, 0]
+    q = np.cross(s, e1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        u, v, t = np.einsum("td,td->t", s, p) / det, q @ direction / det, np.einsum("td,td->t", e2, q) / det
+    ahead = (t >= 0) & (t <= reach)
+    margin = np.minimum.reduce([u, v, 1.0 - u - v])
+    if (ahead & (np.abs(margin) < EDGE)).any():
+        return "edge"
+    crossed = np.sort(t[ahead & (margin >= 0)])
+    if len(crossed) > 1 and crossed[1] - crossed[0] <= TIE * max(crossed[0], 1e-9):
+        return "tie"
+    return "unexplained"
+
+
+def agreement_cases(quick: bool) -> list:
+    names = QUICK_CASES if quick else [case.name for case in assets.CASES]
+    rows = []
+    for name in names:
+        objects = assets.build_case(assets.case_named(name))
+        caster, batches = recorded_bake(bake.BakeSettings(samples=64 if quick else 256), objects)
+        row = {"case": name, "triangles": len(caster.triangles), **agreement(caster, batches)}
+        print(f"   {name:18} {row['triangles']:8d} faces {row['rays']:10d} rays  occlusion "
+              f"{100 * row['occlusion_agreement']:8.4f} %  face {100 * row['face_agreement']:8.4f} %  "
+              f"{reasons_text(row['reasons'])}", flush=True)
+        rows.append(row)
+    return rows
+
+
+def reasons_text(reasons: dict) -> str:
+    return ", ".join(f"{count} {reason}" for reason, count in sorted(reasons.items())) or "all agree"
+
+
+# -- 2. casts alone ------------------------------------------------------------------------------------------------
+def casts_alone(caster, batches, passes: int) -> dict:
+    """Seconds of each engine's `occluded` over the batches, alternating batch by batch, the best of `passes` for
+    each batch; rays/s and Embree ÷ BVHTree."""
+    built = {"embree": caster.engine.engine,
+             "bvhtree": engines.build("bvhtree", caster.vertices, caster.triangles, caster.engine.max_distance)}
+    best = {name: np.full(len(batches), np.inf) for name in ENGINES}
+    gc.collect()
+    for _ in range(passes):
+        for index, (origins, directions, live) in enumerate(batches):
+            for name in ENGINES:
+                start = time.perf_counter()
+                built[name].occluded(origins, directions, live)
+                best[name][index] = min(best[name][index], time.perf_counter() - start)
+    rays = rays_in(batches)
+    rates = {name: rays / best[name].sum() for name in ENGINES}
+    return {"rays": rays, "triangles": len(caster.triangles), "rays_per_s": rates,
+            "ratio": rates["embree"] / rates["bvhtree"]}
+
+
+def room_rays(count: int, quick: bool):
+    """The dense scene's bake's rays from `count` floor and wall vertices → (caster, batches)."""
+    dense_demo(1 if quick else 3)
+    room = ["Floor", "BackWall", "LeftWall"]
+    settings = bake.BakeSettings(samples=64 if quick else 256, ray_engine="embree")
+    plan = planned(settings, room)
+    receivers = [layout.receiver for layout in plan.layouts()]
+    picked = []
+    for receiver in receivers:
+        rows = np.linspace(0, len(receiver.positions) - 1, count // len(receivers)).round().astype(int)
+        picked.append(bake.Receiver(receiver.name, receiver.positions[rows], receiver.normals[rows], receiver.key,
+                                    None if receiver.inward is None else receiver.inward[rows]))
+    caster = plan.occluders.ray_caster()
+    caster.engine = Recording(caster.engine)
+    job.TransferJob(picked, plan.occluders, settings).run()
+    return caster, caster.engine.batches
+
+
+# -- 3. the whole demo bake ----------------------------------------------------------------------------------------
+def whole_bakes(samples: int, passes: int) -> dict:
+    """The demo bake with 2 workers, the engines alternating, best of `passes`; and one process's bake, timed by
+    question."""
+    walls, split = {name: [] for name in ENGINES}, {}
+    for _ in range(passes):
+        for name in ENGINES:
+            assets.fresh_file()
+            assets.sample_scenes.build_demo_scene()
+            start = time.perf_counter()
+            plan = planned(bake.BakeSettings(samples=samples, ray_engine=name))
+            summary = execute(plan, local_executor(2)).run().summary
+            walls[name].append(time.perf_counter() - start)
+    for name in ENGINES:
+        assets.fresh_file()
+        assets.sample_scenes.build_demo_scene()
+        start = time.perf_counter()
+        plan = planned(bake.BakeSettings(samples=samples, ray_engine=name))
+        caster = plan.occluders.ray_caster()
+        caster.engine = Timed(caster.engine)
+        execute(plan, executors.InProcess()).run()
+        total = time.perf_counter() - start
+        casting = caster.engine.seconds["occluded"] + caster.engine.seconds["hits"]
+        split[name] = {"total_s": total, "casting_s": casting, "contact_s": caster.engine.seconds["nearest"],
+                       "rest_s": total - casting - caster.engine.seconds["nearest"]}
+    best = {name: min(times) for name, times in walls.items()}
+    return {"samples": samples, "rays": summary.rays, "wall_s": walls, "best_s": best,
+            "ratio": best["bvhtree"] / best["embree"], "one_process": split}
+
+
+# -- 4. memory -----------------------------------------------------------------------------------------------------
+def resident_bytes() -> int:
+    with open("/proc/self/statm") as statm:
+        return int(statm.read().split()[1]) * os.sysconf("SC_PAGE_SIZE")
+
+
+def engine_memory(caster) -> dict:
+    """Resident bytes each engine adds as it is built (both kept, BVHTree's first)."""
+    added, kept = {}, []
+    for name in ("bvhtree", "embree"):
+        gc.collect()
+        before = resident_bytes()
+        kept.append(engines.build(name, caster.vertices, caster.triangles, caster.engine.max_distance))
+        added[name] = resident_bytes() - before
+    return {"triangles": len(caster.triangles), "bytes": added, "embree_scene": added["embree"] - added["bvhtree"]}
+
+
+# -- the run -------------------------------------------------------------------------------------------------------
+def verdict(key, value) -> str:
+    relation, goal = GOALS[key]
+    return f"goal {relation} {goal:g}: {'PASS' if (value >= goal) else 'MISS'}"
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description="Embree and BVHTree side by side")
+    parser.add_argument("--quick", action="store_true",
+                        help="smoke run: two small cases, 64 samples, one pass, the dense scene subdivided once")
+    parser.add_argument("--json", help="also write the figures as JSON here")
+    parser.add_argument("--assets", default=assets.ASSETS, help="the folder of the public test meshes "
+                        "benchmarks/assets.py's cases import (default: %(default)s)")
+    args = parser.parse_args(argv)
+    assets.ASSETS = args.assets
+    if not engines.embree_installed():
+        print(f"engines: error: {engines.EMBREE_MISSING}", file=sys.stderr)
+        return 1
+    with schema_registered():  # the bake settings of the objects (blender.schema)
+        return run(args)
+
+
+def run(args) -> int:
+    passes, samples = (1, 64) if args.quick else (3, 256)
+    print(f"engines benchmark: {ray_engine_label('embree')} against {ray_engine_label('bvhtree')}"
+          + ("  (quick: the goals are for the full run)" if args.quick else ""), flush=True)
+    started = time.perf_counter()
+    print("\n1. Agreement, ray by ray, on every ray of each case's bake (Embree's hits against BVHTree's)")
+    rows = agreement_cases(args.quick)
+    rays = sum(row["rays"] for row in rows)
+    worst = min(row["face_agreement"] for row in rows)
+    reasons = sum((Counter(row["reasons"]) for row in rows), Counter())
+    print(f"   all {rays} rays: occlusion {100 * (1 - sum(r['found_differs'] for r in rows) / rays):.4f} %, face "
+          f"{100 * (1 - sum(r['found_differs'] + r['face_differs'] for r in rows) / rays):.4f} %; the rest: "
+          f"{reasons_text(reasons)}; the same face's distances within {max(r['worst_distance'] for r in rows):.1e} of "
+          "the rays' reach")
+    print(f"   agreement on the face hit, worst case {100 * worst:.4f} %  {verdict('agreement', 100 * worst)}", flush=True)
+
+    print("\n2. Casts alone: occluded over the bake's recorded rays, best of "
+          f"{passes} pass{'es' * (passes > 1)}")
+    assets.fresh_file()
+    assets.sample_scenes.build_demo_scene()
+    casts = {"demo": casts_alone(*recorded_bake(bake.BakeSettings(samples=samples)), passes)}
+    dense = room_rays(256 if args.quick else 2048, args.quick)
+    casts["dense"] = casts_alone(*dense, passes)
+    for name, found in casts.items():
+        rate = found["rays_per_s"]
+        print(f"   {name:6} {found['triangles']:8d} faces {found['rays']:9d} rays: Embree "
+              f"{rate['embree'] / 1e6:6.2f} M rays/s, BVHTree {rate['bvhtree'] / 1e6:5.2f} M rays/s, Embree ÷ "
+              f"BVHTree {found['ratio']:5.1f}×  {verdict('casts', found['ratio'])}", flush=True)
+    memory = engine_memory(dense[0])
+    del dense
+
+    print(f"\n3. The whole demo bake, {samples} samples, 2 workers, best of {passes}")
+    whole = whole_bakes(samples, passes)
+    for name in ENGINES:
+        split = whole["one_process"][name]
+        print(f"   {name:8} 2 workers {whole['best_s'][name]:6.2f} s; one process {split['total_s']:6.2f} s: "
+              f"casting {split['casting_s']:6.2f} s, contact search {split['contact_s']:5.2f} s, the rest "
+              f"{split['rest_s']:6.2f} s")
+    print(f"   BVHTree ÷ Embree wall time {whole['ratio']:.2f}×  {verdict('bake', whole['ratio'])}")
+    mb = {name: size / 2 ** 20 for name, size in memory["bytes"].items()}
+    print(f"\n4. Memory over the dense scene ({memory['triangles']} faces): BVHTree {mb['bvhtree']:.0f} MB, Embree "
+          f"engine {mb['embree']:.0f} MB (its scene {memory['embree_scene'] / 2 ** 20:.0f} MB, its contact "
+          "search's BVHTree the rest)")
+    print(f"\ntotal {(time.perf_counter() - started) / 60:.1f} min")
+    if args.json:
+        write_json(args.json, {"quick": args.quick, "agreement": rows, "casts": casts, "memory": memory,
+                               "whole_bake": whole})
+        print(f"wrote {os.path.abspath(args.json)}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
