@@ -300,7 +300,8 @@ def run(args) -> int:
           f"{100 * (1 - sum(r['found_differs'] + r['face_differs'] for r in rows) / rays):.4f} %; the rest: "
           f"{reasons_text(reasons)}; the same face's distances within {max(r['worst_distance'] for r in rows):.1e} of "
           "the rays' reach")
-    print(f"   agreement on the face hit, worst case {100 * worst:.4f} %  {verdict('agreement', 100 * worst)}", flush=True)
+    print(f"   agreement on the face hit, worst case {100 * worst:.4f} %  {verdict('agreement', 100 * worst)}",
+          flush=True)
 
     print("\n2. Casts alone: occluded over the bake's recorded rays, best of "
           f"{passes} pass{'es' * (passes > 1)}")

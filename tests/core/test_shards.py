@@ -99,6 +99,12 @@ def test_each_refusal_names_the_part_or_the_shard():
     assert found[0].startswith("p2 is from another scene or selection (room.blend: Suzanne)")
     found = shards.refusals([part("p1", 1), part("p2", 2, count=4), part("p3", 3)], current)
     assert found[0] == "p2 is shard 2/4, the others are of 3"
+    embree = dict(SETTINGS, ray_engine="embree")  # the engines' bakes agree, but not bit for bit
+    bvhtree = dict(SETTINGS, ray_engine="bvhtree")
+    found = shards.refusals([part("p1", 1, settings=embree), part("p2", 2, settings=bvhtree),
+                             part("p3", 3, settings=embree)], info(0, settings=embree))
+    assert found == ["p2 was baked with the ray engine bvhtree, the others with embree: bake every shard with one "
+                     "(--ray-engine)", "missing shard 2/3"]
     too_far = ("p5", info(5))
     assert shards.refusals([part("p1", 1), part("p2", 2), part("p3", 3), too_far], current) == [
         "p5 is shard 5/3: K must be from 1 to N"]
