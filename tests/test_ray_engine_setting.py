@@ -138,3 +138,35 @@ def test_each_engines_bake_is_the_same_bits_with_workers(engine, launch):
     two = job.TransferJob([receiver], shared, settings, executor).run()[0]
     assert_bit_identical(one, two)
     assert one.rays.sum() > 0 and not np.isnan(one.transfer).any()
+
+
+def test_the_panels_name_the_engine_that_casts_and_that_cast_the_stored_bake(empty_scene):
+    from conftest import FakeLayout
+    from test_bake_blender import box, grid
+
+    class Layout(FakeLayout):
+        def label(self, text="", **kwargs):
+            self.drawn.append(text)
+
+        def menu(self, idname, **kwargs):
+            pass
+
+        def operator(self, idname, **kwargs):
+            super().operator(idname)
+            return type("Properties", (), {})()
+
+    def drawn(panel) -> list:
+        found = []
+        panel.draw(type("Panel", (), {"layout": Layout(found)})(), bpy.context)
+        return found
+    grid("Floor")
+    bpy.context.view_layer.objects.active = box("Cube")
+    settings = empty_scene.prt_bake
+    settings.order, settings.samples = 3, 16
+    assert settings.ray_engine == "auto"
+    bake_panel = drawn(bpy.types.PRT_PT_bake)
+    assert "ray_engine" in bake_panel and f"Casts with {engines.label('embree')}" in bake_panel
+    settings.ray_engine = "bvhtree"
+    assert not any(line.startswith("Casts with") for line in drawn(bpy.types.PRT_PT_bake))
+    assert bpy.ops.prt.bake() == {"FINISHED"}
+    assert f"Cast with BVHTree of Blender {bpy.app.version_string}" in drawn(bpy.types.PRT_PT_bake_info)
