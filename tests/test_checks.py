@@ -92,6 +92,8 @@ def test_memory_grows_with_the_points_order_hits_and_spawned_workers():
     # share this process's
     assert checks.bake_bytes(size(processes=4, spawned=True)) - checks.bake_bytes(size(processes=4)) > \
         3 * (40_000 * checks.TRIANGLE_BYTES + checks.SPAWNED_BYTES)
+    # Embree's scene is held beside the BVHTree of the contact search
+    assert checks.bake_bytes(size(ray_engine="embree")) - base == 40_000 * checks.EMBREE_TRIANGLE_BYTES
 
 
 @pytest.mark.parametrize("available, level", [(None, checks.INFO), (10 << 20, checks.ERROR),

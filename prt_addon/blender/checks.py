@@ -72,7 +72,7 @@ def bake_size(plan, job, spawned: bool) -> checks.BakeSize:
         channels=job.albedo[0].shape[1] if job.albedo else 1,
         rays=job.total_vertices * settings.samples if casts else 0,
         hits_per_ray=checks.HITS_PER_RAY if casts and settings.mode == "interreflected" else 0.0,
-        processes=job.processes(), spawned=spawned)
+        processes=job.processes(), spawned=spawned, ray_engine=occluders.engine if occluders else "bvhtree")
 
 
 def object_checks(ob, receiver: bool, casts_rays: bool) -> list[Check]:

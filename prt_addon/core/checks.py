@@ -18,6 +18,7 @@ LEVELS = (ERROR, WARNING, INFO, OK)
 POINT_BYTES = 9 * 8 + 8 + 8 + 1      # positions, normals, inward (float64 × 3 each); std error, rays, skipped
 OCCLUDER_VERTEX_BYTES = 2 * 3 * 8    # world positions and the recentred copy the ray caster keeps
 TRIANGLE_BYTES = 8 * 3 + 114         # indices, and mathutils' BVHTree: 114 bytes a triangle (178 k triangles)
+EMBREE_TRIANGLE_BYTES = 110          # Embree's scene beside the BVHTree its engine keeps (1.4 M triangles)
 PROCESS_BYTES = 64 << 20             # a process's chunk at work: 32 MB of basis values (REPLICATE_VALUES_AT_ONCE)
 SPAWNED_BYTES = 256 << 20            # a spawned worker itself: Blender, or Python with bpy (257 MB measured)
 HIT_BYTES = 48 + 170                 # a recorded hit (vertex, triangle, barycentric, weight) and its share of the
@@ -88,6 +89,7 @@ class BakeSize:
     hits_per_ray: float       # recorded hits per ray: interreflected, at most one (HITS_PER_RAY), else 0
     processes: int            # processes that cast rays
     spawned: bool             # spawned workers load their own copy of the job
+    ray_engine: str = "bvhtree"  # the engine that casts them (core.engines)
 
     @property
     def coefficients(self) -> int:
@@ -96,10 +98,11 @@ class BakeSize:
 
 def bake_bytes(size: BakeSize) -> int:
     """Peak memory of the bake in this process and its workers: the points and their transfer, the occluders and
-    their ray tree (once more per spawned worker, which is a Blender of its own), each process's working chunk,
+    their ray engine (once more per spawned worker, which is a Blender of its own), each process's working chunk,
     and in interreflected bakes the recorded hits and the bounce operator built from them."""
     transfer = size.points * size.coefficients * size.channels * (4 + 3 * 8)  # float32 result, float64 bounces
-    scene = size.occluder_vertices * OCCLUDER_VERTEX_BYTES + size.occluder_triangles * TRIANGLE_BYTES
+    per_triangle = TRIANGLE_BYTES + (EMBREE_TRIANGLE_BYTES if size.ray_engine == "embree" else 0)
+    scene = size.occluder_vertices * OCCLUDER_VERTEX_BYTES + size.occluder_triangles * per_triangle
     spawned = size.processes - 1 if size.spawned else 0
     hits = int(size.rays * size.hits_per_ray * HIT_BYTES)
     return ((size.points * POINT_BYTES + scene) * (1 + spawned) + transfer + size.processes * PROCESS_BYTES + hits
