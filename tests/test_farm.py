@@ -182,6 +182,23 @@ def test_merged_shards_are_bit_identical_to_one_bake_and_a_retried_shard_writes_
     assert not list(parts[1].parent.glob(outputs.TEMPORARY_PREFIX + "*"))  # the atomic write left no temporary file
 
 
+def test_shards_cast_with_the_engine_they_are_given_and_a_merge_refuses_a_part_of_another(scenes, tmp_path):
+    """Shards baked with BVHTree merge into BVHTree's one-process bake, bit for bit (the suite's other farm bakes
+    cast with Auto's Embree); a part baked with the other engine is refused by name."""
+    options = [*bake_options("shadowed", None), "--ray-engine", "bvhtree"]
+    one = tmp_path / "one.blend"
+    ok(run_cli("bake", scenes["room"], *options, "--output", one))
+    out, parts = shard_and_merge(scenes["room"], tmp_path, 2, options)
+    assert_same_bake(out, one)
+    assert description(parts[0])["settings"]["ray_engine"] == "bvhtree"
+    assert description(parts[0])["ray_engine"] == f"BVHTree of Blender {bpy.app.version_string}"
+    embree_part, mixed = tmp_path / "embree-2.npz", tmp_path / "mixed.blend"
+    ok(run_cli("bake", scenes["room"], "--shard", "2/2", "--out", embree_part, *bake_options("shadowed", None)))
+    assert description(embree_part)["settings"]["ray_engine"] == "embree"
+    refused(run_cli("merge", scenes["room"], parts[0], embree_part, "--output", mixed),
+            f"{embree_part} was baked with the ray engine embree, the others with bvhtree", nothing_at=[mixed])
+
+
 @pytest.fixture(scope="module")
 def shadowed_parts(scenes, tmp_path_factory):
     """Three shadowed parts of the room, and a folder with only those."""
