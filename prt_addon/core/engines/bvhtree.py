@@ -83,4 +83,3 @@ def _tree_normals(corners) -> np.ndarray:
 def _vectors(vectors, count) -> np.ndarray:
     """(count, 3) float64 from an iterable of mathutils Vectors (float32: exact in float64)."""
     return np.fromiter(chain.from_iterable(vectors), dtype=np.float64, count=3 * count).reshape(count, 3)
-
