@@ -313,8 +313,8 @@ def run(args) -> int:
     for name, found in casts.items():
         rate = found["rays_per_s"]
         print(f"   {name:6} {found['triangles']:8d} faces {found['rays']:9d} rays: Embree "
-              f"{rate['embree'] / 1e6:6.2f} M rays/s, BVHTree {rate['bvhtree'] / 1e6:5.2f} M rays/s, Embree ÷ "
-              f"BVHTree {found['ratio']:5.1f}×  {verdict('casts', found['ratio'])}", flush=True)
+              f"{rate['embree'] / 1e6:6.3f} M rays/s, BVHTree {rate['bvhtree'] / 1e6:6.3f} M rays/s, Embree ÷ "
+              f"BVHTree {found['ratio']:5.2f}×  {verdict('casts', found['ratio'])}", flush=True)
     memory = engine_memory(dense[0])
     del dense
 

@@ -99,7 +99,7 @@ def test_engines_smoke_run():
         match = found(rf"^   {scene}\s+\d+ faces\s+{{n}} rays: Embree\s+{{n}} M rays/s, BVHTree\s+{{n}} M rays/s, "
                       rf"Embree ÷ BVHTree\s+{{n}}×  goal >= 15: (PASS|MISS)", out)
         rays, embree, tree, ratio = (number(group) for group in match.groups()[:4])
-        assert ratio == pytest.approx(embree / tree, rel=0.02) and rays > 1000
+        assert ratio == pytest.approx(embree / tree, rel=0.01) and rays > 1000
         judged(ratio, ">=", 15, match.group(5))
     for engine in ("embree", "bvhtree"):
         match = found(rf"^   {engine}\s+2 workers\s+{{n}} s; one process\s+{{n}} s: casting\s+{{n}} s, contact search"
