@@ -169,6 +169,32 @@ def test_the_zips_embreex_wheel_is_installed_and_occludes_a_ray(addon):
     assert distance[0] == pytest.approx(1.0, abs=1e-6) and min(distance[1:]) > 1e30
 
 
+EMBREE_BAKE = """
+import sys
+bpy.ops.mesh.primitive_plane_add(size=4.0)
+bpy.ops.mesh.primitive_cube_add(size=1.0, location=(0.0, 0.0, 1.0))
+bpy.ops.object.select_all(action="DESELECT")
+bpy.data.objects["Plane"].select_set(True)
+settings = bpy.context.scene.prt_bake
+settings.samples, settings.ray_engine = 64, "embree"
+print(bpy.ops.prt.bake())
+print(bpy.data.meshes["Plane"]["prt"]["ray_engine"])
+print(sys.modules["embreex"].__file__)
+"""
+
+
+def test_the_installed_extension_bakes_with_embree_from_its_wheel(addon):
+    """The Bake button with Ray Engine Embree, in a Blender whose embreex is the zip's: the bake finishes, its
+    stored bake names Embree, and the embreex it cast with is the one extracted from the zip."""
+    if not expected_wheels(this_platform()):
+        pytest.skip(f"PyPI has no embreex wheel for {this_platform()}")
+    done = in_blender_with_the_installed_extension(EMBREE_BAKE)
+    assert done.returncode == 0, done.stderr
+    finished, engine, module = done.stdout.strip().splitlines()[-3:]
+    assert finished == "{'FINISHED'}" and engine.startswith("Embree"), done.stdout
+    assert Path(module).is_relative_to(installed_site_packages())
+
+
 def _our_classes():
     return [cls for cls in bpy.types.Operator.__subclasses__() + bpy.types.Panel.__subclasses__()
             + bpy.types.PropertyGroup.__subclasses__() + bpy.types.UIList.__subclasses__()
