@@ -10,13 +10,14 @@ Its outcome, BakeResults, is what storing writes: nothing is written here, so a 
 the previous data as it was.
 """
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 import sys
 
 import bpy
 import numpy as np
 
 from ..core import executors, interpolation, job, lobes, texel_gather, texel_refine
+from ..core.statistics import rms
 from ..core.errors import InputError
 from ..core.progress import JobSequence, WrappingJob
 from . import texel_plan
@@ -36,6 +37,7 @@ class BakeResults:
     decisions: list          # one sentence per texel or Auto receiver
     lattices: str            # what the texel lattices baked and interpolated ("" without texels)
     problems: list
+    parts: list = field(default_factory=list)  # each dynamic part's own BakeResults; `summary` then covers all
 
 
 def local_executor(workers: int):
@@ -119,6 +121,9 @@ class Execution(WrappingJob):
                       + sum(len(surface.receiver.positions) for surface in plan.request.bouncers))
         stages.append(self.between)
         shares.append(max(1, self.between.total_vertices))
+        self.parts = [Execution(part, executor) for part in plan.parts]  # each dynamic receiver alone, after
+        stages += self.parts
+        shares += [sum(len(layout.receiver.positions) for layout in part.plan.layouts()) for part in self.parts]
         self.sequence = JobSequence(stages, shares, "PRT bake")
 
     def inner(self) -> JobSequence:
@@ -170,8 +175,12 @@ class Execution(WrappingJob):
         summary.split_vertices = sum(entry["split_vertices"] for entry in summary.per_object.values())
         self._measure_interpolation(summary, [receiver.name for receiver in receivers], results)
         decisions = [self.decisions[receiver.name] for receiver in receivers if self.decisions[receiver.name]]
-        return BakeResults([receiver.name for receiver in receivers], chosen, results, summary, decisions,
-                           self.main.lattice_line() if self.main.states else "", self.problems)
+        own = BakeResults([receiver.name for receiver in receivers], chosen, results, summary, decisions,
+                          self.main.lattice_line() if self.main.states else "", self.problems)
+        if self.parts:
+            own.parts = [part.outcome() for part in self.parts]
+            own.summary = merged_summary([own] + own.parts, self.sequence.progress.elapsed)
+        return own
 
     def _measure_interpolation(self, summary: job.Summary, names, results):
         """The probes' interpolation error per object and overall, into the summary."""
@@ -200,3 +209,30 @@ class Execution(WrappingJob):
         summary.phases_s["probes_s"] = self.between.progress.elapsed + self.auto_s
         # A merge's time is the shards' seconds summed plus its own, as its job's summary counts it.
         summary.time_s = self.sequence.progress.elapsed + self.main.first.phase_times.get("shards_s", 0.0)
+
+
+def merged_summary(outcomes: list, time_s: float) -> job.Summary:
+    """One summary of a bake and its dynamic parts (BakeResults each), baked one after another in `time_s`: counts
+    add, the error statistics are over every point, the bounces and the settings are the first bake's."""
+    first, summaries = outcomes[0].summary, [outcome.summary for outcome in outcomes]
+    rel = np.concatenate([result.rel_error for outcome in outcomes for result in outcome.results])
+    merged = job.Summary(**{**vars(first), "per_object": {}, "phases_s": {}})
+    for name in ("objects", "vertices", "points", "rays", "skipped_vertices", "split_vertices", "interp_points",
+                 "interp_rays"):
+        setattr(merged, name, sum(getattr(summary, name) for summary in summaries))
+    for summary in summaries:
+        merged.per_object.update(summary.per_object)
+        for phase, seconds in summary.phases_s.items():
+            merged.phases_s[phase] = merged.phases_s.get(phase, 0.0) + seconds
+    merged.time_s = time_s
+    casting_s = sum(summary.rays / summary.rays_per_s for summary in summaries if summary.rays_per_s > 0)
+    merged.rays_per_s = merged.rays / casting_s if casting_s > 0 else 0.0
+    merged.est_rms_rel_error, merged.est_max_rel_error = rms(rel), float(rel.max(initial=0.0))
+    measured = [summary for summary in summaries if summary.est_interp_rms_rel_error is not None]
+    if measured and merged.interp_points:
+        merged.est_interp_rms_rel_error = float(np.sqrt(sum(
+            summary.interp_points * summary.est_interp_rms_rel_error ** 2 for summary in measured) / max(
+            1, sum(summary.interp_points for summary in measured))))
+        merged.est_interp_max_rel_error = max(summary.est_interp_max_rel_error for summary in measured)
+    merged.ray_engine = next((summary.ray_engine for summary in summaries if summary.ray_engine), "")
+    return merged

@@ -3,9 +3,9 @@ parts, so a check can say what changed and Bake Stale rebakes only the objects w
 
 - geometry: the evaluated mesh (modifiers applied) in object space: positions, corner normals, each corner's
   vertex and the triangles' corners.
-- transform: matrix_world.
-- occluders (shadowed and interreflected bakes): the world-space triangles of every other visible mesh instance,
-  as one set. Any of them may shadow the object, so moving one makes every other receiver stale: the simplest
+- transform: matrix_world; nothing for a dynamic object, whose transfer turns with it.
+- occluders (shadowed and interreflected bakes): the world-space triangles of every other visible mesh instance but
+  the dynamic ones, as one set (none for a dynamic object: it is its own occluder, in its geometry). Any of them may shadow the object, so moving one makes every other receiver stale: the simplest
   rule that is never wrong. Interreflected bakes also read their world-space corner normals and albedo, since
   they reflect light onto the object.
 - materials: what the object's own materials give the bake: subsurface settings (shadowed and interreflected) and
@@ -32,8 +32,9 @@ def fingerprints(depsgraph, objects, settings, storage_options=None) -> dict[str
     casters = _caster_digests(depsgraph, settings.mode == "interreflected") if settings.mode != "unshadowed" else []
     return {ob.name: {
         "geometry": _geometry_digest(ob, depsgraph),
-        "transform": digests.array_digest(np.array(ob.matrix_world)),
-        "occluders": digests.set_digest(digest for owner, digest in casters if owner != ob.name),
+        "transform": digests.array_digest(np.zeros(0) if geometry.is_dynamic(ob) else np.array(ob.matrix_world)),
+        "occluders": digests.set_digest(() if geometry.is_dynamic(ob) else
+                                        (digest for owner, digest in casters if owner != ob.name)),
         "materials": _materials_digest(ob, depsgraph, settings.mode),
         "settings": _settings_digest(ob, settings, storage_options or {}),
     } for ob in objects}
@@ -46,6 +47,8 @@ def _settings_digest(ob, settings, storage_options) -> str:
     options = texel_bake.options_for(ob, storage_options)
     if options.storage != "vertex":
         values["storage"] = asdict(options)
+    if geometry.is_dynamic(ob):
+        values["dynamic"] = True
     return digests.values_digest(values)
 
 

@@ -7,6 +7,7 @@ import bpy
 import numpy as np
 
 from ..core import arrays, bake, corners, sampling
+from ..core import settings as spec
 from ..core.errors import InputError
 from . import materials
 from .mesh_arrays import (mesh_corner_normals, mesh_corner_vertices, mesh_positions, mesh_triangles,
@@ -67,6 +68,12 @@ def receivers_from_selection(context, names=None):
     return selected or visible_mesh_objects(context)
 
 
+def is_dynamic(ob) -> bool:
+    """Whether the object is baked in its own frame against itself alone (core.settings.DYNAMIC): it may move and
+    turn after its bake, so it casts no shadow on the other objects and they cast none on it."""
+    return bool(getattr(ob, "prt_" + spec.DYNAMIC.name, False))
+
+
 def check_writable(ob):
     """Reasons the bake could not be stored on this object, raised before any work is done."""
     if ob.type != "MESH":
@@ -95,8 +102,10 @@ class Surface:
         return self.receiver.positions[:len(self.receiver.positions) - self.extra_points]
 
 
-def surface_from_object(ob, depsgraph, notes: list, for_storage: bool = True, albedo: bool = False) -> Surface:
-    """World-space positions and normals of the evaluated mesh's shading points, validated point by point.
+def surface_from_object(ob, depsgraph, notes: list, for_storage: bool = True, albedo: bool = False,
+                        own_frame: bool = False) -> Surface:
+    """World-space positions and normals of the evaluated mesh's shading points, validated point by point; with
+    `own_frame`, in the object's own space (a dynamic object's transfer turns with it).
 
     Each point is shaded with its corner normal, as Blender shades it; a vertex whose corners share one normal
     is one point (with exactly the vertex normal where they agree, so smooth meshes bake as they always did).
@@ -137,7 +146,7 @@ def surface_from_object(ob, depsgraph, notes: list, for_storage: bool = True, al
                    if albedo else None)
     finally:
         evaluated.to_mesh_clear()
-    matrix = np.array(ob.matrix_world, dtype=np.float64)
+    matrix = np.eye(4) if own_frame else np.array(ob.matrix_world, dtype=np.float64)
     world_positions = points_to_world(matrix, positions)
     world_normals = directions_to_world(matrix, normals)
     usable = used & (np.linalg.norm(world_normals, axis=1) > 0)

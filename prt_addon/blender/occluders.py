@@ -4,7 +4,7 @@ convex hull bounds it, and the flat convex polygons among it that the core integ
 import numpy as np
 
 from ..core import arrays, bake, polygons
-from .geometry import points_to_world
+from .geometry import is_dynamic, points_to_world
 from .mesh_arrays import mesh_positions, mesh_triangles
 
 HULL_TEST_POINTS = 1 << 16  # points tested against the extremes' hull at once, so memory stays bounded
@@ -12,8 +12,9 @@ HULL_TEST_POINTS = 1 << 16  # points tested against the extremes' hull at once, 
 
 def occluders_from_depsgraph(depsgraph, surfaces=()) -> tuple[bake.Occluders, set]:
     """The solved surfaces first, in the job's order (the occluders' `solved_vertices`, so a hit triangle's corners
-    index their vertices), then every other visible mesh (modifiers applied, instances expanded), in world space;
-    and the names of the objects they came from."""
+    index their vertices), then every other visible mesh but the dynamic ones (modifiers applied, instances
+    expanded), in world space; and the names of the objects they came from. Without a depsgraph, the solved surfaces
+    alone (a dynamic object's own)."""
     vertex_blocks = [s.receiver.positions for s in surfaces]
     offsets = np.cumsum([0] + [len(block) for block in vertex_blocks])
     triangle_blocks = [s.triangles + offset for s, offset in zip(surfaces, offsets)]
@@ -21,7 +22,7 @@ def occluders_from_depsgraph(depsgraph, surfaces=()) -> tuple[bake.Occluders, se
     sources, meshes = set(), {}
     flat = [polygons.convex_polygon(s.receiver.positions, s.triangles) for s in surfaces]
     baked = {s.receiver.name for s in surfaces}
-    for instance in depsgraph.object_instances:
+    for instance in depsgraph.object_instances if depsgraph is not None else ():
         ob, owner = instance.object, shadow_caster(instance)
         if owner is None or (not instance.is_instance and ob.original.name in baked):
             continue
@@ -65,11 +66,11 @@ def occluders_from_depsgraph(depsgraph, surfaces=()) -> tuple[bake.Occluders, se
 
 def shadow_caster(instance):
     """The visible object whose mesh a depsgraph instance shows (the instancer for an instance), or None when it
-    casts no shadow (not a mesh, or hidden)."""
+    casts no shadow (not a mesh, hidden, or dynamic: it moves after the bake)."""
     if instance.object.type != "MESH":
         return None
     owner = instance.parent.original if instance.is_instance and instance.parent else instance.object.original
-    return owner if owner.visible_get() else None
+    return owner if owner.visible_get() and not is_dynamic(owner) else None
 
 
 def convex_hull_points(points: np.ndarray) -> np.ndarray:

@@ -39,6 +39,7 @@ class BakePlan:
     problems: list                    # the request's, and the objects the plan drops, one sentence each
     albedo: list | None = None        # interreflected: (V, C) per solved surface, one channel where all are grey
     between: BetweenProbes = field(default_factory=BetweenProbes)
+    parts: list = field(default_factory=list)  # BakePlan of each further dynamic receiver (request.parts)
 
     @property
     def settings(self) -> bake.BakeSettings:
@@ -50,7 +51,8 @@ class BakePlan:
 
     @property
     def names(self) -> list[str]:
-        return [receiver.name for receiver in self.receivers]
+        """Every receiver's, the parts' too."""
+        return [receiver.name for receiver in self.receivers] + [name for part in self.parts for name in part.names]
 
     @property
     def pending(self) -> list[texel_plan.Candidate]:
@@ -59,7 +61,8 @@ class BakePlan:
 
     def notes(self) -> list:
         """What the user should know before the bake: the request's notes, and the storage decided so far."""
-        return self.request.notes + [receiver.decision for receiver in self.receivers if receiver.decision]
+        return (self.request.notes + [receiver.decision for receiver in self.receivers if receiver.decision]
+                + [note for part in self.parts for note in part.notes()])
 
     def solved_surfaces(self) -> list:
         """The surfaces whose transfer the bake solves, in the order of the job, its results and the occluders'
@@ -105,6 +108,11 @@ def plan_bake(request: BakeRequest) -> BakePlan:
     texel_plan.check_memory([receiver.layout for receiver in plan.receivers if receiver.layout], settings.order)
     plan.albedo = albedo_channels([s.albedo for s in plan.solved_surfaces()]) if bouncing else None
     plan.between = between_probes(plan)
+    for part in request.parts:
+        try:
+            plan.parts.append(plan_bake(part))
+        except InputError as problem:
+            plan.problems.append(str(problem))
     return plan
 
 

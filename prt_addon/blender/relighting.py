@@ -11,8 +11,10 @@ from contextlib import contextmanager
 import math
 
 import bpy
+import numpy as np
 
 from ..core import lights as core_lights
+from ..core import rotation
 from ..core.errors import StaleBake
 from . import display, heatmaps, layouts, storage
 from .lights import environment_image, scene_lights, sync_sun_lamps
@@ -65,7 +67,7 @@ class Relighter:
                 self._paint_heatmaps(receivers, mode)
             elif settings.prt_lights:
                 sync_sun_lamps(settings, create=False)  # a split-off sun's lamp turns with its environment
-                self._shade(receivers, settings)
+                self._shade(receivers, settings, depsgraph)
             for lost in _sync_display(scene, receivers, settings.prt_display):
                 self._report_once(f"PRT: {lost}")
         finally:
@@ -84,6 +86,9 @@ class Relighter:
             mesh = datablock if kind == "MESH" else datablock.data if kind == "OBJECT" else None
             if isinstance(mesh, bpy.types.Mesh) and self._bake_changed(mesh):
                 return True
+            if kind == "OBJECT" and update.is_updated_transform and isinstance(mesh, bpy.types.Mesh) \
+                    and is_dynamic(mesh):
+                return True  # a dynamic object moved: its light may turn into its frame
         return False
 
     def _bake_changed(self, mesh) -> bool:
@@ -120,7 +125,7 @@ class Relighter:
             self._reported.add(message)
             print(message)
 
-    def _shade(self, receivers, settings):
+    def _shade(self, receivers, settings, depsgraph):
         """Sums the lights once per SH order, then writes the colours of each mesh whose light or bake changed."""
         orders = {math.isqrt(baked.transfer.shape[-1]) for _, baked in receivers}
         for entry in settings.prt_lights:
@@ -130,17 +135,21 @@ class Relighter:
         totals = self._light_cache.totals(scene_lights(settings), orders, settings.prt_display.window)
         self.auto_window = ({order: (self._light_cache.auto_strengths[order], core_lights.negative_share(totals[order]))
                              for order in orders} if settings.prt_display.window == "auto" else {})
-        self._write_colours(receivers, totals)
+        self._write_colours(receivers, totals, depsgraph)
 
     def shade_all(self, scene, totals: dict):
         """Shades every baked mesh of the scene under the given light ({order: (3, order²)}), whatever its SH
         lights: validation shows the light it gives Cycles."""
         self._write_colours(list(self._receivers(scene)), totals)
 
-    def _write_colours(self, receivers, totals):
-        """The colours of each mesh whose light or bake changed."""
+    def _write_colours(self, receivers, totals, depsgraph=None):
+        """The colours of each mesh whose light or bake changed; a dynamic object's light is turned into its frame
+        (as the depsgraph places it, else as it is now)."""
         for ob, baked in receivers:
             light = totals[math.isqrt(baked.transfer.shape[-1])]
+            if is_dynamic(ob.data):
+                placed = ob.evaluated_get(depsgraph) if depsgraph is not None else ob
+                light = light_in_frame(light, placed.matrix_world)
             state = (_bake_key(ob.data), light.tobytes())
             if self._shaded.get(ob.data.name_full) == state:
                 continue
@@ -158,6 +167,19 @@ class Relighter:
             if self._shaded.get(ob.data.name_full) != state:
                 heatmaps.paint(ob.data, rows, self.legend.top)
                 self._shaded[ob.data.name_full] = state
+
+
+def is_dynamic(mesh) -> bool:
+    """Whether the mesh's bake is a dynamic object's, its transfer in the object's own frame."""
+    meta = mesh.get(storage.METADATA_KEY)
+    return bool(meta is not None and meta.get(storage.DYNAMIC_KEY, False))
+
+
+def light_in_frame(light, matrix_world) -> np.ndarray:
+    """SH light (..., n²) in world space as an object placed by `matrix_world` sees it in its own frame:
+    L_object(ω) = L(R·ω), R the matrix's rotation (translation and uniform scale change nothing)."""
+    turn = np.array(matrix_world.to_quaternion().to_matrix(), dtype=np.float64)
+    return rotation.rotate(light, turn.T)
 
 
 def _bake_key(mesh):

@@ -39,6 +39,8 @@ class BakeRequest:
     notes: list = field(default_factory=list)      # baked, but the user should know
     farm: bool = False                             # farm shards bake it (every receiver per vertex)
     ray_engine: str = ""                           # the engine its settings name, with its version, as reported
+    dynamic: bool = False                          # its one receiver is dynamic: baked in its own frame, alone
+    parts: list = field(default_factory=list)      # BakeRequest of each further dynamic receiver, baked after it
 
     @property
     def names(self) -> list[str]:
@@ -72,7 +74,8 @@ def read_request(context, settings: bake.BakeSettings, object_names=None, storag
                 raise InputError(
                     f"{ob.name!r} shares its mesh with {meshes[ob.data.name]!r}, and the bake depends on "
                     f"where each object is; make it single-user (Object > Relations) to bake both")
-            surface = geometry.surface_from_object(ob, depsgraph, request.notes, albedo=bouncing)
+            surface = geometry.surface_from_object(ob, depsgraph, request.notes, albedo=bouncing,
+                                                   own_frame=geometry.is_dynamic(ob))
             meshes[ob.data.name] = ob.name
         except InputError as problem:
             request.problems.append(str(problem))
@@ -84,22 +87,54 @@ def read_request(context, settings: bake.BakeSettings, object_names=None, storag
         raise InputError("nothing to bake: " + ("; ".join(request.problems) or "no mesh objects"))
     if farm:  # before the occluders are gathered
         texel_bake.refuse_on_farm(objects, overrides)
+        _refuse_dynamic_on_farm(objects)
     request.fingerprints = fingerprint.fingerprints(depsgraph, objects, settings, storage_options)
-    if bouncing:  # every visible mesh reflects light onto the receivers, so its transfer is solved too
-        request.bouncers = _bouncing_surfaces(context, depsgraph, set(request.names), request.notes)
-    if settings.mode != "unshadowed":
-        solved = [receiver.surface for receiver in request.receivers] + request.bouncers
-        request.occluders, sources = occluders_from_depsgraph(depsgraph, solved)
-        request.occluders.engine = engine
-        if sources <= set(request.names):
-            request.notes.append("no visible mesh besides the receivers casts shadows; "
-                                 "each receiver is shadowed by the receivers only")
-    for ob, receiver in zip(objects, request.receivers):
+    everyone = request.receivers
+    dynamic = [geometry.is_dynamic(ob) for ob in objects]
+    request.receivers = [receiver for receiver, own in zip(everyone, dynamic) if not own]
+    if request.receivers:
+        _gather_scene(request, context, depsgraph)
+    for ob, receiver in zip(objects, everyone):
         if receiver.options.storage != "vertex":
             receiver.texels = texel_bake.texel_input(ob, receiver.surface, depsgraph, receiver.options)
         if settings.mode != "unshadowed":
             receiver.subsurface = materials.subsurface_material(ob)
+    parts = [_alone(request, receiver) for receiver, own in zip(everyone, dynamic) if own]
+    if not request.receivers:  # dynamic receivers only: the first is the bake, the others its parts
+        return replace(parts[0], problems=request.problems, notes=request.notes, parts=parts[1:])
+    request.parts = parts
     return request
+
+
+def _gather_scene(request: BakeRequest, context, depsgraph):
+    """The static receivers' bouncers and occluders: every visible mesh but the dynamic ones."""
+    settings = request.settings
+    if settings.mode == "interreflected":  # every visible mesh reflects light onto the receivers: solved too
+        request.bouncers = _bouncing_surfaces(context, depsgraph, set(request.names), request.notes)
+    if settings.mode != "unshadowed":
+        solved = [receiver.surface for receiver in request.receivers] + request.bouncers
+        request.occluders, sources = occluders_from_depsgraph(depsgraph, solved)
+        request.occluders.engine = settings.ray_engine
+        if sources <= set(request.names):
+            request.notes.append("no visible mesh besides the receivers casts shadows; "
+                                 "each receiver is shadowed by the receivers only")
+
+
+def _alone(request: BakeRequest, receiver: ReceiverInput) -> BakeRequest:
+    """A dynamic receiver's own bake: its surface (in its own frame) is its only occluder and bouncer."""
+    alone = BakeRequest(request.settings, [receiver], ray_engine=request.ray_engine, dynamic=True,
+                        fingerprints={receiver.name: request.fingerprints[receiver.name]})
+    if request.settings.mode != "unshadowed":
+        alone.occluders, _ = occluders_from_depsgraph(None, [receiver.surface])
+        alone.occluders.engine = request.settings.ray_engine
+    return alone
+
+
+def _refuse_dynamic_on_farm(objects):
+    chosen = [ob.name for ob in objects if geometry.is_dynamic(ob)]
+    if chosen:
+        raise InputError(f"{', '.join(map(repr, chosen))}: a dynamic object bakes on one machine, alone; farm "
+                         f"shards bake the static scene: bake it without --shard or --dask")
 
 
 def ray_engine_label(name: str) -> str:
@@ -111,7 +146,7 @@ def _bouncing_surfaces(context, depsgraph, receiver_names, notes) -> list:
     """The other visible meshes' surfaces, which only reflect light onto the receivers."""
     found = []
     for ob in geometry.visible_mesh_objects(context):
-        if ob.name in receiver_names:
+        if ob.name in receiver_names or geometry.is_dynamic(ob):
             continue
         try:
             found.append(geometry.surface_from_object(ob, depsgraph, notes, for_storage=False, albedo=True))

@@ -44,6 +44,8 @@ DISPLAY_MODES = [
 def setting_property(setting: spec.Setting):
     """The Blender property for one setting: its label, description, default and range."""
     common = {"name": setting.label, "description": setting.description, "default": setting.default}
+    if isinstance(setting.default, bool):
+        return BoolProperty(**common)
     if setting.choices:
         return EnumProperty(items=list(setting.choices), **common)
     if isinstance(setting.default, float):

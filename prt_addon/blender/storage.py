@@ -33,6 +33,7 @@ ERROR_ATTRIBUTE = "_prt_error"
 VALIDATION_ERROR_ATTRIBUTE = "_prt_validation_error"
 POINT_ATTRIBUTE = "_prt_point"
 METADATA_KEY = "prt"
+DYNAMIC_KEY = "dynamic"  # in a dynamic object's metadata: its transfer is in its own frame (blender.relighting)
 MAP_OF_KEY = "_prt_texel_map_of"  # on each image stored for a bake (texel maps, their shaded image): its mesh
 READABLE_CONVENTIONS = (2, bake.CONVENTION_VERSION)  # 2: POINT domain only, no `domain` key
 

@@ -8,7 +8,7 @@ import bpy
 import numpy as np
 
 from ..core import job, subsurface
-from . import fingerprint
+from . import fingerprint, storage
 from .execute import INTERPOLATION_KEYS, BakeResults
 from .plan import BakePlan
 
@@ -31,7 +31,20 @@ class BakeReport:
 
 def store(plan: BakePlan, results: BakeResults) -> BakeReport:
     """Writes every receiver's transfer, with its Subsurface Weight mixed in where its layout takes it, and returns
-    the bake's report."""
+    the bake's report (its dynamic parts' too)."""
+    report = _store_one(plan, results)
+    for part, outcome in zip(plan.parts, results.parts):
+        done = _store_one(part, outcome)
+        report.objects += done.objects
+        report.problems += done.problems
+        report.notes += [note for note in done.notes if note not in report.notes]
+        report.subsurface_objects += done.subsurface_objects
+        report.storage += done.storage
+    report.summary = results.summary
+    return report
+
+
+def _store_one(plan: BakePlan, results: BakeResults) -> BakeReport:
     settings, summary = plan.settings, results.summary
     inputs = {receiver.name: receiver for receiver in plan.request.receivers}
     notes = plan.request.notes + results.decisions
@@ -51,6 +64,8 @@ def store(plan: BakePlan, results: BakeResults) -> BakeReport:
             fields["bounces"] = summary.bounces
         if summary.ray_engine:
             fields["ray_engine"] = summary.ray_engine
+        if plan.request.dynamic:
+            fields[storage.DYNAMIC_KEY] = True
         layout.write(bpy.data.objects[(name, None)].data, result, fields, settings)
     lattices = [f"texel lattices: {results.lattices}"] if results.lattices else []
     return BakeReport(summary, results.names, results.problems, notes, mixed, results.decisions + lattices)

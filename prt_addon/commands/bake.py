@@ -9,6 +9,7 @@ from ..blender import checks as scene_checks
 from ..blender.execute import execute, local_executor
 from ..blender.farm import bake_share, bake_shard, build_ray_tree, farm_plan, merge_parts
 from ..blender.fingerprint import stale_line, stale_receivers
+from ..blender.geometry import receivers_from_selection
 from ..blender.plan import plan_bake
 from ..blender.request import read_request
 from ..blender.store import store
@@ -34,6 +35,9 @@ def add_parser(commands):
     parser.add_argument("--uv-map", help="texel storage: the UV map the texels follow (default: PRT's own)")
     parser.add_argument("--no-new-uv-map", action="store_true",
                         help="texel storage: never add PRT's own lightmap UV map; a mesh without --uv-map is not baked")
+    parser.add_argument("--dynamic", action=argparse.BooleanOptionalAction, default=None,
+                        help="set every receiver's Dynamic (saved with the file): baked in its own frame against "
+                             "itself only, so it may move and turn; --no-dynamic: static (default: each object's own)")
     parser.add_argument("--output", help="where to save the baked file (default: over the opened file)")
     parser.add_argument("--report", help="write the bake report as JSON here")
     parser.add_argument("--stale-only", action="store_true",
@@ -103,6 +107,9 @@ def run(args, in_blender: bool) -> int:
                   saved=None if shard else saved_file(args.output))
     workers = getattr(args, "workers", spec.WORKERS.default)
     receivers = object_names(args)
+    if args.dynamic is not None:
+        for ob in receivers_from_selection(bpy.context, receivers):
+            ob.prt_dynamic = args.dynamic
     if shard:
         info = bake_shard(bpy.context, settings, receivers, shard, args.out, stopwatch, workers, log=log)
         log(f"PRT shard {args.shard}: {info.rays} rays in {info.time_s:.2f} s; wrote {args.out}")

@@ -84,6 +84,10 @@ RESOLUTION = Setting("resolution", "Resolution", "Texels along each side of the 
 TEXEL_SIZE = Setting("texel_size", "Texel Size", "Size of one texel on the surface (scene units); 0: from the "
                      "target error", 0.0, 0.0, 1e6)
 TEXEL = (STORAGE, RESOLUTION, TEXEL_SIZE)
+# Per object: a rigid object that may move and turn after its bake. Its transfer is baked against itself alone, in
+# its own frame, and the display turns the SH lights into that frame (blender.request, blender.relighting).
+DYNAMIC = Setting("dynamic", "Dynamic", "Bake its self-shadowing in its own frame, against itself only, so it may "
+                  "move and turn without a rebake; other objects neither shadow it nor are shadowed by it", False)
 
 
 def worker_count(workers: int) -> int:

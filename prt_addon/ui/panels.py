@@ -94,6 +94,7 @@ class PRT_PT_storage(ActiveMeshPanel, bpy.types.Panel):
         sub = column.column()
         sub.enabled = not ob.prt_uv_map
         sub.prop(ob, "prt_new_uv_map")
+        layout.prop(ob, "prt_dynamic")
 
 
 class PRT_PT_bake_info(ActiveMeshPanel, bpy.types.Panel):
