@@ -14,6 +14,13 @@ from ..core.checks import ERROR, INFO, WARNING, Check
 from . import geometry
 from .execute import first_job
 
+# Modifiers that move vertices (a pose, a simulation, a procedural deformation): a dynamic object follows rigid motion
+# only. Geometry Nodes count, since they may deform.
+DEFORMING = {"ARMATURE", "CAST", "CLOTH", "CORRECTIVE_SMOOTH", "CURVE", "DISPLACE", "EXPLODE", "HOOK",
+             "LAPLACIANDEFORM", "LAPLACIANSMOOTH", "LATTICE", "MESH_CACHE", "MESH_DEFORM", "MESH_SEQUENCE_CACHE",
+             "NODES", "OCEAN", "SHRINKWRAP", "SIMPLE_DEFORM", "SMOOTH", "SOFT_BODY", "SURFACE_DEFORM",
+             "VOLUME_DISPLACE", "WARP", "WAVE"}
+
 
 def output_check(output: str | None, required: bool) -> Check:
     """Where the bake will be saved: `output`, else the open file. On the command line saving is part of the
@@ -87,6 +94,8 @@ def object_checks(ob, receiver: bool, casts_rays: bool) -> list[Check]:
                                           f"fronts; apply the scale (Object > Apply > Scale)"))
     if not receiver:
         return found
+    if geometry.is_dynamic(ob):
+        found += dynamic_checks(ob)
     if ob.hide_render:
         found.append(Check(WARNING, name, "hidden in renders (Disable in Renders): it is baked, but a render "
                                           "will not show it"))
@@ -104,6 +113,27 @@ def object_checks(ob, receiver: bool, casts_rays: bool) -> list[Check]:
             f"{shared} non-manifold edges (more than two faces)"] * bool(shared)
         found.append(Check(INFO, name, " and ".join(said) + ": rays may pass through the openings into the "
                                                              "inside (expected for floors, walls and cards)"))
+    return found
+
+
+def dynamic_checks(ob) -> list[Check]:
+    """What a dynamic object's display cannot follow. Non-uniform scale (or shear) is an error: the transfer is
+    baked for the unscaled shape and the display turns the light only, so it would be wrong at every angle, and
+    its fingerprint leaves the transform out, so nothing would call it stale. A deforming modifier or shape keys
+    are a warning: the bake holds the pose it was baked in, and a changed pose shows as stale (geometry changed)."""
+    name, found = repr(ob.name), []
+    axes = np.array(ob.matrix_world.to_3x3(), dtype=np.float64)
+    gram = axes.T @ axes
+    if np.abs(gram - np.trace(gram) / 3.0 * np.eye(3)).max() > 1e-4 * np.trace(gram) / 3.0:
+        scale = ", ".join(f"{value:g}" for value in ob.matrix_world.to_scale())
+        found.append(Check(ERROR, name, f"dynamic with non-uniform scale ({scale}): the display turns its light "
+                                        f"but cannot stretch its shadows; apply the scale (Object > Apply > Scale) "
+                                        f"or scale it uniformly"))
+    deforming = [modifier.name for modifier in ob.modifiers if modifier.show_viewport and modifier.type in DEFORMING]
+    deforming += ["shape keys"] * (ob.data.shape_keys is not None and len(ob.data.shape_keys.key_blocks) > 1)
+    if deforming:
+        found.append(Check(WARNING, name, f"dynamic and deformed ({', '.join(deforming)}): only rigid motion is "
+                                          f"followed; the bake holds this pose, and another pose is stale"))
     return found
 
 

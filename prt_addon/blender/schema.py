@@ -185,6 +185,7 @@ OBJECT_STORAGE = [(bpy.types.Object, OBJECT_PREFIX + setting.name, setting_prope
     (bpy.types.Object, OBJECT_PREFIX + "new_uv_map", BoolProperty(
         name="Add Lightmap UV Map", default=True, description="Without a chosen UV map, PRT may add its own "
         "'PRT Lightmap' map (Lightmap Pack); the object's own UV maps are never changed")),
+    (bpy.types.Object, OBJECT_PREFIX + spec.DYNAMIC.name, setting_property(spec.DYNAMIC)),
 ]
 
 register, unregister = classes_and_properties(classes, [
