@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 from mathutils import Euler, Matrix
 
-from conftest import add_light
+from conftest import add_light, run_cli
 from prt_addon.blender import checks as scene_checks
 from prt_addon.blender import fingerprint, storage
 from prt_addon.blender.plan import plan_bake
@@ -175,3 +175,16 @@ def test_non_uniform_scale_is_an_error_and_a_deforming_modifier_a_warning(sphere
     found = [check for check in checks_of(["Sphere"]) if check.subject == "'Sphere'"]
     assert not any(check.level == ERROR for check in found)
     assert [check.level for check in found if "deformed (Bend)" in check.text] == [WARNING]
+
+
+def test_the_command_line_marks_receivers_dynamic_and_saves_it(empty_scene, tmp_path):
+    bpy.ops.mesh.primitive_plane_add(size=6)
+    bpy.ops.mesh.primitive_monkey_add(location=(0, 0, 1.2))
+    path = str(tmp_path / "scene.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=path)
+    result = run_cli("bake", path, "--object", "Suzanne", "--dynamic", "--samples", "16", "--workers", "1")
+    assert result.returncode == 0, result.stderr
+    bpy.ops.wm.open_mainfile(filepath=path)
+    monkey = bpy.data.objects["Suzanne"]
+    assert monkey.prt_dynamic and monkey.data["prt"][storage.DYNAMIC_KEY] is True
+    assert not bpy.data.objects["Plane"].prt_dynamic and "prt" not in bpy.data.objects["Plane"].data
