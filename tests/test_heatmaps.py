@@ -12,7 +12,7 @@ import pytest
 from conftest import FakeLayout
 from prt_addon.blender import sample_scenes, storage
 from prt_addon.blender.scene_bake import SceneBake
-from prt_addon.core import bake, heatmap
+from prt_addon.core import bake, heatmap, rules
 
 GREY = heatmap.missing_rgba(1)[0]
 
@@ -163,3 +163,51 @@ def test_display_panel_draws_the_mode_and_the_legend(baked, prt, addon):
     labels.clear()
     bpy.types.PRT_PT_display.draw(SimpleNamespace(layout=Layout(drawn)), bpy.context)
     assert "Grey, not validated: Cube, Grid" in labels
+
+
+def test_decided_by_rule_shows_each_points_rule_in_its_colour_and_the_panels_count_them(empty_scene, prt, addon):
+    """A cube resting on a floor: its bottom face's corners lie on the floor facing into it, and the floor's vertex
+    under the cube lies on the cube's bottom (both black by the contact rule); every other point is measured."""
+    bpy.ops.mesh.primitive_grid_add(x_subdivisions=4, y_subdivisions=4, size=4)
+    bpy.ops.mesh.primitive_cube_add(size=1, location=(0.0, 0.0, 0.5))
+    bpy.ops.object.select_all(action="DESELECT")
+    bake_scene()
+    floor, cube = bpy.data.objects["Grid"], bpy.data.objects["Cube"]
+    codes = {ob.name: stored_codes(ob.data) for ob in (floor, cube)}
+    corner_down = face_normal_z(cube.data) < -0.5
+    assert (codes["Cube"][corner_down] == rules.LYING).all() and (codes["Cube"][~corner_down] == 0).all()
+    floor_positions = np.array([vertex.co for vertex in floor.data.vertices])
+    under = np.all(np.abs(floor_positions[:, :2]) < 0.5, axis=1)
+    assert under.sum() == 1 and codes["Grid"][under].tolist() == [rules.LYING]
+    assert cube.data["prt"]["decided_by_rule"].to_dict() == {"lying": 4}
+    display = bpy.context.scene.prt_display
+    display.mode = "RULE"
+    update()
+    legend = prt.handlers.engine.legend
+    assert legend.mode == "RULE" and dict(legend.decided) == {"lying": 5} and legend.missing == ()
+    for ob in (floor, cube):
+        rgba, _ = shown(ob.data)
+        np.testing.assert_array_equal(rgba, heatmap.rule_rgba(codes[ob.name]), err_msg=ob.name)
+    drawn, labels = [], []
+
+    class Layout(FakeLayout):
+        def label(self, text="", **kwargs):
+            labels.append(text)
+
+    bpy.types.PRT_PT_display.draw(SimpleNamespace(layout=Layout(drawn)), bpy.context)
+    assert "Lying on a surface (black): 5 points" in labels
+    bpy.context.view_layer.objects.active = cube
+    bpy.types.PRT_PT_bake_info.draw(SimpleNamespace(layout=Layout(drawn)), bpy.context)
+    assert "  4 lying on a surface (black)" in labels
+
+
+def stored_codes(mesh) -> np.ndarray:
+    attribute = mesh.attributes["_prt_rule"]
+    values = np.empty(len(attribute.data), dtype=np.int32)
+    attribute.data.foreach_get("value", values)
+    return values
+
+
+def face_normal_z(mesh) -> np.ndarray:
+    """Each face corner's face normal's z."""
+    return np.array([polygon.normal.z for polygon in mesh.polygons for _ in polygon.loop_indices])

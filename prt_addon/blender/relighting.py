@@ -165,7 +165,7 @@ class Relighter:
             rows = found[ob.name_full]
             state = (mode, self.legend.top, _bake_key(ob.data), None if rows is None else hash(rows[0].tobytes()))
             if self._shaded.get(ob.data.name_full) != state:
-                heatmaps.paint(ob.data, rows, self.legend.top)
+                heatmaps.paint(ob.data, rows, self.legend)
                 self._shaded[ob.data.name_full] = state
 
 

@@ -38,6 +38,9 @@ DISPLAY_MODES = [
     ("ERROR", "Estimated Error", "Heatmap of the bake's estimated relative error: where more rays would help"),
     ("DIFFERENCE", "Difference from Cycles", "Heatmap of the last validation's error against Cycles "
                                              "(the Validation panel's button stores it)"),
+    ("RULE", "Decided by Rule", "Where the bake decided a point by rule instead of measuring it with rays (lying "
+                                "on a surface, touching one at an angle, normal against its face): where to look "
+                                "when it disagrees with Cycles"),
 ]
 
 

@@ -5,6 +5,7 @@ Stored layout (documented in the README; bump core.bake.CONVENTION_VERSION when 
   3j+2; the last one zero-padded). The leading `_` lets glTF export them. Coloured (interreflected) transfer has
   one such set per channel: `_prt_r00`..., `_prt_g00`..., `_prt_b00`....
 - FLOAT attribute `_prt_error`: the estimated relative standard error.
+- INT8 attribute `_prt_rule`: the rule that decided each point instead of rays (core.rules; 0: measured).
 - FLOAT attribute `_prt_validation_error` (optional, written by the panel's validation): the last validation's
   per-vertex (per-corner) error against Cycles, in the same domain. It goes with the bake it judged.
 - Their domain: POINT, one row per vertex, where every vertex is one shading point (core.corners), as in
@@ -12,7 +13,7 @@ Stored layout (documented in the README; bump core.bake.CONVENTION_VERSION when 
   CORNER attribute `_prt_point` giving each corner's shading point (corners of one point hold equal rows).
 - Mesh custom property `prt` (a group): order, mode, samples, rays, convention, domain, vertex_count,
   corner_count, points, split_vertices, est_rms_rel_error, est_max_rel_error, time_s, date, bake_id, seed,
-  target_error, skipped_vertices, channels (and bounces for interreflected bakes), est_interp_rms_rel_error,
+  target_error, skipped_vertices, decided_by_rule (a group: points per rule, core.rules.counts), channels (and bounces for interreflected bakes), est_interp_rms_rel_error,
   est_interp_max_rel_error, interp_points, ray_engine (the engine that cast the rays, with its version; none for an
   unshadowed bake) (written by blender.store), fingerprint (a group, written by blender.fingerprint).
 Convention 2 files (POINT only, no domain) still read.
@@ -24,12 +25,13 @@ import uuid
 import bpy
 import numpy as np
 
-from ..core import bake
+from ..core import bake, rules
 from ..core.statistics import rms
 from ..core.errors import InputError, StaleBake
 
 ATTRIBUTE_PREFIX = "_prt_"
 ERROR_ATTRIBUTE = "_prt_error"
+RULE_ATTRIBUTE = "_prt_rule"
 VALIDATION_ERROR_ATTRIBUTE = "_prt_validation_error"
 POINT_ATTRIBUTE = "_prt_point"
 METADATA_KEY = "prt"
@@ -72,6 +74,8 @@ def write_transfer(mesh, result, summary_fields: dict, settings: bake.BakeSettin
             mesh.attributes[name].data.foreach_set("vector", np.ascontiguousarray(padded[:, 3 * j: 3 * j + 3]).ravel())
     mesh.attributes.new(ERROR_ATTRIBUTE, "FLOAT", domain)
     mesh.attributes[ERROR_ATTRIBUTE].data.foreach_set("value", result.rel_error[rows].astype(np.float32))
+    mesh.attributes.new(RULE_ATTRIBUTE, "INT8", domain)
+    mesh.attributes[RULE_ATTRIBUTE].data.foreach_set("value", result.rules[rows].astype(np.int32))
     if corner_points is not None:
         mesh.attributes.new(POINT_ATTRIBUTE, "INT", "CORNER")
         mesh.attributes[POINT_ATTRIBUTE].data.foreach_set("value", corner_points.astype(np.int32))
@@ -95,6 +99,7 @@ def write_metadata(mesh, result, settings: bake.BakeSettings, domain: str, split
         "split_vertices": split_vertices,
         "rays": int(result.rays.sum()),
         "skipped_vertices": int(result.skipped.sum()),
+        "decided_by_rule": rules.counts(result.rules),
         "est_rms_rel_error": rms(result.rel_error),
         "est_max_rel_error": float(result.rel_error.max(initial=0.0)),
         "date": datetime.now(timezone.utc).isoformat(timespec="seconds"),
@@ -124,12 +129,13 @@ def remove_images(mesh):
 
 
 def read_values(mesh, name) -> tuple[np.ndarray, str] | None:
-    """A FLOAT attribute of the bake (ERROR_ATTRIBUTE, VALIDATION_ERROR_ATTRIBUTE) as float32 rows and their
-    domain (POINT: per vertex, CORNER: per face corner); None where the mesh does not have it."""
+    """A FLOAT or integer attribute of the bake (ERROR_ATTRIBUTE, VALIDATION_ERROR_ATTRIBUTE, RULE_ATTRIBUTE) as
+    float32 or int32 rows and their domain (POINT: per vertex, CORNER: per face corner); None where the mesh does
+    not have it."""
     attribute = mesh.attributes.get(name)
     if attribute is None:
         return None
-    values = np.empty(len(attribute.data), dtype=np.float32)
+    values = np.empty(len(attribute.data), dtype=np.float32 if attribute.data_type == "FLOAT" else np.int32)
     attribute.data.foreach_get("value", values)
     return values, attribute.domain
 

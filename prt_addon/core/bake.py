@@ -128,4 +128,5 @@ class ChunkResult:
     std_error: np.ndarray  # (c,) norm of the coefficients' standard error
     rays: np.ndarray       # (c,) rays cast from each vertex (its estimate also uses its ray group's)
     skipped: np.ndarray    # (c,) bool: exact without rays (provably unoccluded, or in contact)
+    rules: np.ndarray      # (c,) uint8: the rule that decided each point (core.rules), MEASURED where none did
     records: interreflect.HitRecords | None = None  # interreflected mode: blocked rays' hits (chunk-local rows)

@@ -13,7 +13,7 @@ Shadowed estimator (what makes it cheap compared with the original program's uni
 
 import numpy as np
 
-from . import arrays, contact, interreflect, polygons, ray_groups, rings, sampling, scheduling, sh
+from . import arrays, contact, interreflect, polygons, ray_groups, rings, rules, sampling, scheduling, sh
 from .bake import BakeSettings, ChunkResult, Receiver
 from .lobes import unshadowed_transfer
 from .ray_caster import RayCaster
@@ -41,18 +41,23 @@ def bake_chunk(caster, receiver: Receiver, rows: np.ndarray, settings: BakeSetti
     """Generator over one chunk (the receiver's `rows`) in either mode; yields rays cast, returns a ChunkResult.
     Rows against their faces are black without rays, as rows without a surface."""
     normals = receiver.normals[rows]
-    if receiver.against is not None:
-        normals = np.where(receiver.against[rows, None], 0.0, normals)
+    against = None if receiver.against is None else receiver.against[rows]
+    if against is not None:
+        normals = np.where(against[:, None], 0.0, normals)
     if settings.mode == "unshadowed" or caster is None:
         count = len(rows)
-        return ChunkResult(unshadowed_transfer(settings.order, normals), np.zeros(count),
-                           np.zeros(count, dtype=np.int64), np.zeros(count, dtype=bool))
-    keys = scheduling.vertex_keys(receiver, rows)
-    inward = np.zeros_like(normals) if receiver.inward is None else receiver.inward[rows]
-    labels = None if receiver.ray_groups is None else receiver.ray_groups[rows]
-    steps = None if receiver.surface_step is None else receiver.surface_step[rows]
-    return (yield from shadowed_chunk(caster, receiver.positions[rows], normals, inward, keys, settings, labels,
-                                      steps))
+        result = ChunkResult(unshadowed_transfer(settings.order, normals), np.zeros(count),
+                             np.zeros(count, dtype=np.int64), np.zeros(count, dtype=bool), rules.measured(count))
+    else:
+        keys = scheduling.vertex_keys(receiver, rows)
+        inward = np.zeros_like(normals) if receiver.inward is None else receiver.inward[rows]
+        labels = None if receiver.ray_groups is None else receiver.ray_groups[rows]
+        steps = None if receiver.surface_step is None else receiver.surface_step[rows]
+        result = yield from shadowed_chunk(caster, receiver.positions[rows], normals, inward, keys, settings, labels,
+                                           steps)
+    if against is not None:
+        result.rules[against] = rules.AGAINST
+    return result
 
 
 def shadowed_chunk(caster: RayCaster, positions, normals, inward, keys, settings: BakeSettings, labels=None,
@@ -146,7 +151,10 @@ def shadowed_chunk(caster: RayCaster, positions, normals, inward, keys, settings
     transfer, error = scheduling.combine(rounds, used, count, order)
     transfer[used == 0] = unshadowed[used == 0]  # exact: provably unoccluded, or no surface (zero)
     transfer[in_contact] = 0.0  # exact: every direction is blocked by the surface it rests on
-    return ChunkResult(transfer, error, rays, skipped, _records(hits, used))
+    decided = rules.measured(count)
+    decided[has_surface & facing] = rules.TOUCHING
+    decided[in_contact] = rules.LYING
+    return ChunkResult(transfer, error, rays, skipped, decided, _records(hits, used))
 
 
 def _flat_shadows(caster, origins, normals, order):

@@ -8,12 +8,16 @@ Standard view transform the viewport shows exactly the stops.
 One scale for everything shown, so colours compare across objects: 0 to the 99th percentile of the values,
 rounded up to 1, 2 or 5 × 10^k so the legend reads cleanly; values above it take the top colour, so a few
 outliers do not wash out the rest.
+
+"Decided by rule" is categorical: one colour per rule (core.rules) from Okabe and Ito's colour-blind-safe palette,
+bright where a rule decided, dark grey where rays measured, so the eye goes where a rule may be wrong.
 """
 
 import math
 
 import numpy as np
 
+from . import rules
 from .colour import srgb_to_linear
 from .statistics import percentile
 
@@ -22,6 +26,11 @@ VIRIDIS_SRGB = np.array([(68, 1, 84), (71, 45, 123), (59, 82, 139), (44, 114, 14
 MISSING_SRGB = (0.5, 0.5, 0.5)  # a mesh without the values (not validated): neutral grey, outside the map
 SMALLEST_TOP = 1e-4  # the scale of values that are all zero (an exact bake): 0.01 %
 NICE_MANTISSAS = (1.0, 2.0, 5.0, 10.0)
+RULE_SRGB = np.zeros((rules.LARGEST + 1, 3))  # by rule code
+RULE_SRGB[rules.MEASURED] = (0.25, 0.25, 0.25)
+RULE_SRGB[rules.LYING] = (213 / 255, 94 / 255, 0.0)             # vermillion
+RULE_SRGB[rules.TOUCHING] = (86 / 255, 180 / 255, 233 / 255)    # sky blue
+RULE_SRGB[rules.AGAINST] = (204 / 255, 121 / 255, 167 / 255)    # reddish purple
 
 
 def scale_top(values: np.ndarray) -> float:
@@ -50,6 +59,11 @@ def srgb_colours(values: np.ndarray, top: float) -> np.ndarray:
 def heatmap_rgba(values: np.ndarray, top: float) -> np.ndarray:
     """(N, 4) float32 scene-linear RGBA, alpha 1: the display colour attribute's rows for these values."""
     return _linear_rgba(srgb_colours(values, top))
+
+
+def rule_rgba(codes: np.ndarray) -> np.ndarray:
+    """(N, 4) float32 scene-linear RGBA, alpha 1, of each point's rule code (core.rules)."""
+    return _linear_rgba(RULE_SRGB[np.asarray(codes, dtype=np.int64)])
 
 
 def missing_rgba(count: int) -> np.ndarray:

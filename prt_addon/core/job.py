@@ -10,7 +10,7 @@ import time
 
 import numpy as np
 
-from . import bake, interreflect, lobes, scheduling
+from . import bake, interreflect, lobes, rules, scheduling
 from .executors import InProcess
 from .progress import Job, Progress
 from .statistics import rms
@@ -23,6 +23,7 @@ class ReceiverResult:
     rel_error: np.ndarray   # (V,) std_error ÷ norm of the unshadowed transfer (0 without a surface)
     rays: np.ndarray        # (V,) int64
     skipped: np.ndarray     # (V,) bool: exact without rays (provably unoccluded, or in contact)
+    rules: np.ndarray       # (V,) uint8: the rule that decided each point (core.rules), MEASURED where none did
 
 
 @dataclass
@@ -56,6 +57,7 @@ class Summary:
     interp_points: int = 0
     interp_rays: int = 0
     ray_engine: str = ""  # the engine that cast the rays, with its version ("" where none was cast)
+    decided_by_rule: dict = field(default_factory=dict)  # points each rule decided (core.rules.counts), non-zero
 
     def line(self) -> str:
         bounced = (f", {self.bounces} bounces in {self.phases_s.get('bounces_s', 0.0):.2f} s "
@@ -68,11 +70,12 @@ class Summary:
                    f"; between vertices est. RMS {self.est_interp_rms_rel_error:.4f}, max "
                    f"{self.est_interp_max_rel_error:.4f} ({self.interp_points} points, {self.interp_rays} rays)")
         engine = f" with {self.ray_engine}" if self.ray_engine else ""
+        ruled = f"; decided by rule: {rules.words(self.decided_by_rule)}" if self.decided_by_rule else ""
         return (f"PRT bake: {self.objects} objects, {self.vertices} vertices{split}, order {self.order} {self.mode}: "
                 f"{self.time_s:.2f} s, {self.rays} rays, {self.rays_per_s / 1e3:.0f} k rays/s{engine}, "
                 f"{self.skipped_vertices} vertices exact without rays, "
                 f"est. RMS rel. error {self.est_rms_rel_error:.4f}, max {self.est_max_rel_error:.4f}{between}"
-                f"{bounced}")
+                f"{bounced}{ruled}")
 
 
 class TransferJob(Job):
@@ -107,6 +110,7 @@ class TransferJob(Job):
         self._std_error = [np.zeros(len(r.positions)) for r in receivers]
         self._rays = [np.zeros(len(r.positions), dtype=np.int64) for r in receivers]
         self._skipped = [np.zeros(len(r.positions), dtype=bool) for r in receivers]
+        self._rules = [rules.measured(len(r.positions)) for r in receivers]
         self.records = []  # interreflected: HitRecords per chunk, rows already global
         self.albedo = albedo
         self.bounce_report = None
@@ -162,6 +166,7 @@ class TransferJob(Job):
         self._std_error[receiver_index][rows] = result.std_error
         self._rays[receiver_index][rows] = result.rays
         self._skipped[receiver_index][rows] = result.skipped
+        self._rules[receiver_index][rows] = result.rules
         if result.records is not None:
             solved = self._vertex_offsets[receiver_index] + rows[result.records.vertex]
             self.records.append(interreflect.HitRecords(solved, result.records.triangle, result.records.barycentric,
@@ -198,7 +203,7 @@ class TransferJob(Job):
             if transfer.ndim == 3 and transfer.shape[1] == 1:
                 transfer = transfer[:, 0]  # grey: one channel, stored as (V, n²)
             out.append(ReceiverResult(transfer, self._std_error[index], rel_error,
-                                      self._rays[index], self._skipped[index]))
+                                      self._rays[index], self._skipped[index], self._rules[index]))
         return out
 
     def summary(self, results: list[ReceiverResult], receivers=None, elapsed: float | None = None) -> Summary:
@@ -215,6 +220,7 @@ class TransferJob(Job):
                 "vertices": len(receiver.positions),
                 "rays": int(result.rays.sum()),
                 "skipped_vertices": int(result.skipped.sum()),
+                "decided_by_rule": rules.counts(result.rules),
                 "est_rms_rel_error": rms(result.rel_error),
                 "est_max_rel_error": float(result.rel_error.max(initial=0.0)),
             }
@@ -234,5 +240,6 @@ class TransferJob(Job):
             bounce_relative_changes=list(self.bounce_report.relative_changes) if self.bounce_report else [],
             bounce_tail=self.bounce_report.tail if self.bounce_report else 0.0,
             bounces_converged=self.bounce_report.converged if self.bounce_report else True,
-            albedo_clamped=bool(self.bounce_report and self.bounce_report.albedo_clamped))
+            albedo_clamped=bool(self.bounce_report and self.bounce_report.albedo_clamped),
+            decided_by_rule=rules.total(entry["decided_by_rule"] for entry in per_object.values()))
 

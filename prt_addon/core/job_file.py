@@ -11,6 +11,7 @@ import numpy as np
 from . import bake, estimator, interreflect, ray_caster, scheduling
 
 OPTIONAL_RECEIVER_ARRAYS = ("inward", "ray_groups", "surface_step", "against")  # bake.Receiver's, in their order
+RESULT_ARRAYS = ("transfer", "std_error", "rays", "skipped", "rules")  # bake.ChunkResult's but its records, in order
 
 
 def worker_process_command(python_prefix, job_file, out_file, chunk_indices):
@@ -69,7 +70,7 @@ def result_arrays(results, prefix: str = "") -> dict:
     """The arrays save_results saves for (chunk index, ChunkResult) pairs, by name (each name after `prefix`)."""
     arrays = {"chunks": np.array([chunk_index for chunk_index, _ in results], dtype=np.int64)}
     for slot, (_, result) in enumerate(results):
-        for name in ("transfer", "std_error", "rays", "skipped"):
+        for name in RESULT_ARRAYS:
             arrays[f"{name}_{slot}"] = getattr(result, name)
         if result.records is not None:
             for name in interreflect.HitRecords.FIELDS:
@@ -81,7 +82,7 @@ def load_results(path, prefix: str = "") -> list[tuple[int, bake.ChunkResult]]:
     """(chunk index, result) for every chunk a worker baked (saved under `prefix`, as result_arrays names them)."""
     with np.load(path) as data:
         return [(int(chunk_index), bake.ChunkResult(
-                    *(data[f"{prefix}{name}_{i}"] for name in ("transfer", "std_error", "rays", "skipped")),
+                    *(data[f"{prefix}{name}_{i}"] for name in RESULT_ARRAYS),
                     _load_records(data, prefix, i)))
                 for i, chunk_index in enumerate(data[prefix + "chunks"])]
 

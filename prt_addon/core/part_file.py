@@ -19,9 +19,11 @@ import zlib
 
 import numpy as np
 
+from . import rules as decided
 from .bake import BakeSettings, ChunkResult
 from .errors import InputError
 from .interreflect import HitRecords
+from .job_file import RESULT_ARRAYS
 from .shards import PART_FORMAT, PROBES, PartInfo, shown
 from .workers import shard_chunks
 
@@ -173,7 +175,7 @@ def _settings(settings: dict):
 
 def _member_names(shares, shape: PartShape) -> set[str]:
     """Every member a part of these shares holds."""
-    per_chunk = ["transfer", "std_error", "rays", "skipped"]
+    per_chunk = list(RESULT_ARRAYS)
     names = {"part", "chunks", PROBES + "chunks"}
     names |= {f"{name}_{slot}" for slot in range(len(shares[0]))
               for name in per_chunk + ([f"records_{f}" for f in HitRecords.FIELDS] if shape.records else [])}
@@ -205,8 +207,10 @@ def _chunk(archive, prefix: str, slot: int, rows: int, shape: PartShape, records
     _check(((rays >= 0) & (rays <= shape.most_rays)).all(), f"has ray counts outside 0-{shape.most_rays} in {name}")
     name, skipped = read("skipped", np.bool_, (rows,))
     _check((skipped.view(np.uint8) <= 1).all(), f"has values neither true nor false in {name}")
+    name, rules = read("rules", decided.DTYPE, (rows,))
+    _check((rules <= decided.LARGEST).all(), f"has rule codes outside 0-{decided.LARGEST} in {name}")
     hits = _records(read, rows, shape) if records else None
-    return ChunkResult(transfer, std_error, rays, skipped, hits)
+    return ChunkResult(transfer, std_error, rays, skipped, rules, hits)
 
 
 def _records(read, rows: int, shape: PartShape) -> HitRecords:

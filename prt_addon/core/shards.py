@@ -4,9 +4,9 @@ receivers alone (scheduling.chunk_rows); shard K bakes workers.shard_chunks' sha
 chunk's result where a one-process bake does, and bounces interreflections from the parts' hit records.
 
 A part file is an .npz: its chunks' results as job_file saves a worker's (transfer, standard error, rays, which
-vertices were exact without rays, and in interreflected bakes the blocked rays' hit records), and `part`, a JSON
-string (PartInfo): the shard K/N, the bake's number of chunks, the scene file's name, the solved surfaces and the
-receivers, the settings (the ray engine among them: parts of one bake share it), each receiver's fingerprint, the
+vertices were exact without rays, the rule that decided each, and in interreflected bakes the blocked rays' hit
+records), and `part`, a JSON string (PartInfo): the shard K/N, the bake's number of chunks, the scene file's name,
+the solved surfaces and the receivers, the settings (the ray engine among them: parts of one bake share it), each receiver's fingerprint, the
 shard's seconds (wall and CPU), rays, seconds baking and workers, and its engine as a report names it. A part is
 read as untrusted input (core.part_file).
 """
@@ -27,8 +27,8 @@ from .errors import InputError
 # Also names how chunks are cut and what the description holds: 4 parts a split vertex's points about their mean
 # normal, 5 gives chunks of shared ray groups twice the groups (scheduling.SHARED_CHUNK_FACTOR), 6 has each shard's
 # seconds baking and workers (rays_s, workers: a merged bake's rays per second), 7 the ray engine (in the settings,
-# and as the report names it).
-PART_FORMAT = "prt-part-7"
+# and as the report names it), 8 the rule that decided each point (core.rules).
+PART_FORMAT = "prt-part-8"
 PROBES = "probe_"  # the prefix of the probes' arrays
 
 

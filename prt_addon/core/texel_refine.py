@@ -23,7 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import bake, lobes
+from . import bake, lobes, rules
 from .job import ReceiverResult
 from .progress import Job, Progress
 
@@ -59,6 +59,7 @@ class GridState:
         self.bias = np.zeros(count)   # the part interpolation shares with its neighbours
         self.rays = np.zeros(count, dtype=np.int64)
         self.skipped = np.zeros(count, dtype=bool)
+        self.rules = rules.measured(count)  # of the texels baked; an interpolated one was measured by its neighbours
         self.known = np.zeros(count, dtype=bool)
         self.interpolated = np.zeros(count, dtype=bool)
 
@@ -80,6 +81,7 @@ class GridState:
         self.bias[rows] = 0.0
         self.rays[rows] = result.rays
         self.skipped[rows] = result.skipped
+        self.rules[rows] = result.rules
         self.known[rows] = True
 
     def interpolate(self, rows: np.ndarray, stride: int, scale: float, target: float) -> np.ndarray:
@@ -271,7 +273,8 @@ class RefiningJob(Job):
         out = list(self._first_results)
         for position, state in self.states.items():
             out[position] = ReceiverResult(state.transfer.astype(np.float32), state.std_error,
-                                           state.std_error / self.scale, state.rays, state.skipped)
+                                           state.std_error / self.scale, state.rays, state.skipped,
+                                           state.rules)
         return out
 
     def outcome(self) -> list:

@@ -1,15 +1,16 @@
 """The Display panel's legend for its heatmap modes (blender.schema's DISPLAY_MODES): swatches of the colour scale
-and its range, as the relighting engine last painted it (blender.heatmaps)."""
+and its range, or a swatch per rule with the points it decided, as the relighting engine last painted it
+(blender.heatmaps)."""
 
 import bpy.utils.previews
 import numpy as np
 
-from ..blender.heatmaps import SHADED
-from ..core import heatmap
+from ..blender.heatmaps import RULE, SHADED
+from ..core import heatmap, rules
 from ..blender.handlers import engine
 
 TITLES = {"ERROR": "Estimated relative error", "DIFFERENCE": "Error against Cycles"}
-MISSING = {"ERROR": "no stored error", "DIFFERENCE": "not validated"}  # why a mesh is grey
+MISSING = {"ERROR": "no stored error", "DIFFERENCE": "not validated", RULE: "baked before rules were stored"}
 SWATCHES = 8
 SWATCH_PIXELS = 16
 
@@ -24,24 +25,46 @@ def draw_legend(layout, mode):
     if legend is None or legend.mode != mode:
         column.label(text="The legend shows after the next update", icon="INFO")
         return
-    row = column.row(align=True)
-    for icon in _swatch_icons():
-        row.label(text="", icon_value=icon)
-    column.label(text=f"{TITLES[mode]}: {heatmap.range_label(legend.top)}")
-    column.label(text=f"Above {100 * legend.top:.4g} %: the top colour")
+    if mode == RULE:
+        _draw_rules(column, dict(legend.decided))
+    else:
+        _draw_scale(column, mode, legend.top)
     if legend.missing:
         column.label(text=f"Grey, {MISSING[mode]}: {', '.join(legend.missing)}", icon="INFO")
 
 
-def _swatch_icons() -> list[int]:
+def _draw_rules(column, decided: dict):
+    """A swatch per rule, with the points it decided over every mesh shown."""
+    icons = _swatch_icons()
+    column.label(text="Decided by rule instead of rays:")
+    for code, key in rules.KEYS.items():
+        column.label(text=f"{rules.WORDS[code].capitalize()}: {decided.get(key, 0)} points", icon_value=icons[key])
+    column.label(text="Measured by rays", icon_value=icons["measured"])
+
+
+def _draw_scale(column, mode, top):
+    row = column.row(align=True)
+    for icon in _swatch_icons()["scale"]:
+        row.label(text="", icon_value=icon)
+    column.label(text=f"{TITLES[mode]}: {heatmap.range_label(top)}")
+    column.label(text=f"Above {100 * top:.4g} %: the top colour")
+
+
+def _swatch_icons() -> dict:
+    """Icon ids: "scale", the colour scale's swatches in order; each rule's key and "measured", its colour."""
     global _swatches
     if _swatches is None:
         _swatches = bpy.utils.previews.new()
-        for i, colour in enumerate(heatmap.legend_srgb(SWATCHES)):
-            swatch = _swatches.new(f"prt_heatmap_{i}")
+        named = [(f"prt_heatmap_{i}", colour) for i, colour in enumerate(heatmap.legend_srgb(SWATCHES))]
+        named += [(f"prt_rule_{code}", heatmap.RULE_SRGB[code]) for code in range(rules.LARGEST + 1)]
+        for name, colour in named:
+            swatch = _swatches.new(name)
             swatch.icon_size = (SWATCH_PIXELS, SWATCH_PIXELS)
             swatch.icon_pixels_float = np.tile([*colour, 1.0], SWATCH_PIXELS * SWATCH_PIXELS)
-    return [swatch.icon_id for swatch in _swatches.values()]
+    icons = {"scale": [_swatches[f"prt_heatmap_{i}"].icon_id for i in range(SWATCHES)],
+             "measured": _swatches[f"prt_rule_{rules.MEASURED}"].icon_id}
+    icons.update({key: _swatches[f"prt_rule_{code}"].icon_id for code, key in rules.KEYS.items()})
+    return icons
 
 
 def register():

@@ -5,7 +5,7 @@ import bpy
 
 from ..blender import layouts, storage
 from ..blender.request import ray_engine_label
-from ..core import engines
+from ..core import engines, rules
 from .checks import draw_checklist
 from .presets import draw_presets
 from .stale import draw_status
@@ -125,6 +125,12 @@ class PRT_PT_bake_info(ActiveMeshPanel, bpy.types.Panel):
         described = layouts.stored(mesh).describe(meta)
         if described:
             column.label(text=described)
+        decided = meta.get("decided_by_rule")
+        if decided:  # where an artist should look first when the bake disagrees with Cycles
+            column.label(text="Decided by rule, not rays (Display: Decided by Rule):", icon="ERROR")
+            for code, key in rules.KEYS.items():
+                if decided.get(key):
+                    column.label(text=f"  {decided[key]} {rules.WORDS[code]}")
         column.label(text=f"Baked {meta['date']}")
 
 

@@ -14,7 +14,7 @@ import pytest
 from hypothesis import HealthCheck, example, given, settings, strategies as st
 
 from hostile_parts import archive, npy, npy_header
-from prt_addon.core import part_file, shards
+from prt_addon.core import part_file, rules, shards
 from prt_addon.core.bake import BakeSettings, ChunkResult
 from prt_addon.core.errors import InputError
 from prt_addon.core.interreflect import HitRecords
@@ -38,7 +38,8 @@ def chunk(rows: int, seed: int, records: bool) -> ChunkResult:
         hits = HitRecords(np.array([0, 1, rows - 1, 0]), np.array([0, 4, 2, 2]), weights, np.full(4, 0.125),
                           np.array([0, 1, 2, 3]))
     return ChunkResult(random.normal(size=(rows, 4)), random.uniform(0, 0.1, rows), np.full(rows, 8),
-                       np.array([False] * (rows - 1) + [True]), hits)
+                       np.array([False] * (rows - 1) + [True]), np.arange(rows, dtype=np.uint8) % (rules.LARGEST + 1),
+                       hits)
 
 
 def good_members() -> dict:
@@ -86,13 +87,14 @@ def hostile_parts(draw) -> bytes:
         patch = draw(st.binary(min_size=1, max_size=8))
         return GOOD_BYTES[:at] + patch + GOOD_BYTES[at + len(patch):]
     name = draw(st.sampled_from(ARRAY_NAMES))
-    if kind == "value":  # one value replaced: NaN, infinite, negative, huge, or a byte a bool never holds
+    if kind == "value":  # one value replaced: NaN, infinite, negative, huge, a byte a bool never holds, or a code
+        #                  no rule has
         array = GOOD[name].copy()
         flat = array.reshape(-1).view(np.uint8) if array.dtype == bool else array.reshape(-1)
         if not flat.size:
             return part_bytes(GOOD)
         value = draw(st.sampled_from({"f": [np.nan, np.inf, -np.inf, -1.0, -1e-300, 1e300, 1.5],
-                                      "b": [2, 17, 255]}.get(array.dtype.kind, [-1, 2, 5, 17, 2 ** 62, -2 ** 63])))
+                                      "b": [2, 17, 255], "u": [rules.LARGEST + 1, 17, 255]}.get(array.dtype.kind, [-1, 2, 5, 17, 2 ** 62, -2 ** 63])))
         flat[draw(st.integers(0, flat.size - 1))] = value
         return part_bytes({**GOOD, name: array})
     if kind == "array":  # another shape or dtype, a pickle, or a header claiming far more than it holds
@@ -154,6 +156,7 @@ def assert_a_bake_could_make(chunks, probes):
         assert result.std_error.shape == (rows,) and (result.std_error >= 0).all()
         assert result.rays.shape == (rows,) and ((0 <= result.rays) & (result.rays <= 16)).all()
         assert result.skipped.dtype == bool and set(result.skipped.view(np.uint8).tolist()) <= {0, 1}
+        assert result.rules.dtype == np.uint8 and result.rules.shape == (rows,) and result.rules.max() <= rules.LARGEST
         assert (result.records is not None) == records
         if records:
             hits = result.records
@@ -193,6 +196,7 @@ def test_the_good_part_and_its_deflated_copy_are_read_whole(tmp_path):
     (part_bytes({**GOOD, "transfer_0": np.full((3, 4), np.nan)}), "NaN or infinite values in transfer_0"),
     (part_bytes({**GOOD, "std_error_1": -GOOD["std_error_1"] - 1}), "negative values in std_error_1"),
     (part_bytes({**GOOD, "rays_0": np.full(3, -1)}), "ray counts outside 0-16 in rays_0"),
+    (part_bytes({**GOOD, "rules_1": np.full(2, 200, np.uint8)}), f"rule codes outside 0-{rules.LARGEST} in rules_1"),
     (part_bytes({**GOOD, "records_vertex_1": GOOD["records_vertex_1"] + 2}), "outside its chunk's 2 in records_v"),
     (part_bytes({**GOOD, "records_triangle_0": GOOD["records_triangle_0"] + 5}), "outside the scene's 5"),
     (part_bytes({**GOOD, "records_barycentric_0": GOOD["records_barycentric_0"] * 2}), "not summing to 1"),
@@ -201,7 +205,7 @@ def test_the_good_part_and_its_deflated_copy_are_read_whole(tmp_path):
     (part_bytes({**GOOD, "transfer_1": GOOD["transfer_1"].astype(np.float32)}), "float32, not float64"),
     (part_bytes(with_description(shards=10 ** 9)), "is shard 1/1000000000, the others are of 1"),
     (part_bytes(with_description(shards="1")), "whose shards is '1', not a whole number"),
-    (part_bytes(with_description(format="prt-part-5")), "of another format than prt-part-7"),
+    (part_bytes(with_description(format="prt-part-5")), "of another format than prt-part-8"),
     (part_bytes(with_description(settings={**SETTINGS, "order": 2.0})), "setting order 2.0, not of the type int"),
     (part_bytes(with_description(settings={**SETTINGS, "samples": 10 ** 9})), "settings no bake takes: samples"),
     (archive([(key, npy_header((1 << 27, 4)) + bytes(1 << 20) if key == "transfer_0" else npy(value))
@@ -209,7 +213,7 @@ def test_the_good_part_and_its_deflated_copy_are_read_whole(tmp_path):
     (GOOD_BYTES[:-30], "is not a readable PRT part file (BadZipFile"),
     (b"", "is not a readable PRT part file (BadZipFile"),
     (part_bytes(GOOD, zipfile.ZIP_BZIP2), "compressed by method 12, not stored or deflated"),
-], ids=["nan", "negative-error", "negative-rays", "hit-vertex", "hit-triangle", "barycentric", "replicate",
+], ids=["nan", "negative-error", "negative-rays", "rule-code", "hit-vertex", "hit-triangle", "barycentric", "replicate",
         "shape", "dtype", "a-billion-shards", "shards-text", "format", "order-float", "samples", "bomb",
         "truncated", "empty", "bzip2"])
 def test_each_hostile_part_is_refused_in_one_line_naming_it_and_the_problem(tmp_path, data, words):

@@ -9,7 +9,7 @@ import time
 import numpy as np
 import pytest
 
-from prt_addon.core import bake, executors, job, part_file, shards
+from prt_addon.core import bake, executors, job, part_file, rules, shards
 from prt_addon.core.bake import BakeSettings, ChunkResult
 from prt_addon.core.errors import InputError
 from prt_addon.core.progress import Progress
@@ -49,10 +49,11 @@ def test_shard_of_reads_k_of_n_from_1_to_n():
 
 
 def test_a_part_is_written_atomically_into_a_new_folder_with_the_umasks_mode_and_reads_back(tmp_path):
-    result = ChunkResult(np.arange(18.0).reshape(2, 9), np.ones(2), np.array([4, 5]), np.array([False, True]))
+    result = ChunkResult(np.arange(18.0).reshape(2, 9), np.ones(2), np.array([4, 5]), np.array([False, True]),
+                         np.array([0, rules.LYING], np.uint8))
     path = tmp_path / "new" / "folder" / "part.npz"
     started = shards.Stopwatch(time.perf_counter() - 10.0, shards.cpu_seconds() - 2.0)  # a command 10 s ago
-    probe = ChunkResult(np.full((1, 9), 7.0), np.zeros(1), np.array([9]), np.array([False]))
+    probe = ChunkResult(np.full((1, 9), 7.0), np.zeros(1), np.array([9]), np.array([False]), rules.measured(1))
     written = info(2, rays_s=1.5, workers=2)
     umask = os.umask(0o027)
     try:
@@ -67,7 +68,7 @@ def test_a_part_is_written_atomically_into_a_new_folder_with_the_umasks_mode_and
     ((index, loaded), (other, _)), [(probe_index, probe_loaded)] = part_file.load_part(str(path), read, shape)
     assert (index, other) == (1, 4) and np.array_equal(loaded.transfer, result.transfer) and loaded.records is None
     assert probe_index == 1 and np.array_equal(probe_loaded.transfer, probe.transfer)
-    assert probe_loaded.rays.tolist() == [9]
+    assert probe_loaded.rays.tolist() == [9] and loaded.rules.tolist() == [0, rules.LYING]
     assert [p.name for p in path.parent.iterdir()] == ["part.npz"]
 
 
@@ -141,7 +142,7 @@ def test_a_merges_rays_per_second_and_workers_are_its_shards():
     now = [100.0]
     merge.progress = Progress("PRT bake", clock=lambda: now[0])  # the merge's own seconds, told by this clock
     parts += [(index, ChunkResult(np.zeros((len(rows), 4)), np.zeros(len(rows)), np.full(len(rows), 64),
-                                  np.zeros(len(rows), bool))) for index, (_, rows) in enumerate(merge.chunks)]
+                                  np.zeros(len(rows), bool), rules.measured(len(rows)))) for index, (_, rows) in enumerate(merge.chunks)]
     merge.run()
     now[0] = 103.0
     summary = merge.summary(merge.results())

@@ -84,7 +84,7 @@ def test_memory_grows_with_texels_and_coefficients():
 
 
 # -- refinement (core.texel_refine) -------------------------------------------------------------------------------
-from prt_addon.core import bake, texel_refine  # noqa: E402
+from prt_addon.core import bake, rules, texel_refine  # noqa: E402
 from prt_addon.core.job import ReceiverResult  # noqa: E402
 from prt_addon.core.progress import Progress  # noqa: E402
 
@@ -100,7 +100,8 @@ class ExactJob:
 
     def results(self):
         return [ReceiverResult(self.field(r.positions), np.zeros(len(r.positions)), np.zeros(len(r.positions)),
-                               np.ones(len(r.positions), dtype=np.int64), np.zeros(len(r.positions), dtype=bool))
+                               np.ones(len(r.positions), dtype=np.int64), np.zeros(len(r.positions), dtype=bool),
+                               rules.measured(len(r.positions)))
                 for r in self.receivers]
 
 
