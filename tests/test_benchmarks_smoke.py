@@ -266,3 +266,10 @@ def test_same_bake_smoke_run(tmp_path):
     assert set(lines.values()) == {"equal"}
     assert f"{len(arrays) - 2} of {len(arrays)} arrays equal; 2 DIFFER" in compared.stdout
 
+
+
+def test_mesh_faults_smoke_run():
+    out = run_benchmark("mesh_faults", "--quick")
+    assert number(found(r"^scene: {n} triangles in {n} parts", out).group(1)) > 5000
+    found(r"^found: {n} crossing triangle pairs, 1 parts inside others", out)
+    goal_line(r"^checks of [\d,]+ triangles: {n} s   goal <= 1 s", out, "<=", 1.0)

@@ -3,8 +3,8 @@ decides"), found by arithmetic alone before any ray: slivers and zero-area faces
 parts inside other closed parts. Each finder returns the triangles at fault, so the interface can select their faces.
 
 Crossing surfaces: every pair of triangles of different parts (a part: triangles connected through shared
-vertices; each object's parts are parts of their own) whose bounding boxes share a cell of a uniform grid is
-tested exactly, in batches: an edge of one crossing the other's interior strictly (its ends on opposite sides of
+vertices; each object's parts are parts of their own) whose bounding boxes overlap and share a cell of a uniform
+grid (its cells the median triangle's size) is tested exactly, in batches: an edge of one crossing the other's interior strictly (its ends on opposite sides of
 the plane, the crossing inside all three edges), so surfaces that only touch (a box standing on another, a face on
 a face) do not cross. Inside: a part whose bounding box lies in another's is inside it when its sampled vertices'
 generalised winding numbers with respect to the other (the solid angle its triangles subtend, over 4π) are none
@@ -16,7 +16,6 @@ import numpy as np
 
 SLIVER_RATIO = 0.01      # a sliver's smallest height is below this fraction of its longest edge
 DEGENERATE_RATIO = 1e-7  # a zero-area face's smallest height is below this fraction of its longest edge (float32)
-CELLS_PER_TRIANGLE = 1.0  # the grid's cells: about one per triangle, each at least the median triangle's size
 PAIRS_AT_ONCE = 1 << 18   # triangle pairs tested exactly at once: bounded memory
 INSIDE_SAMPLES = 16       # vertices of a part whose winding numbers decide whether it is inside another
 STRICT = 1e-9             # of the scene's size: how far from a plane or an edge a crossing must be
@@ -56,10 +55,9 @@ def crossing_pairs(positions: np.ndarray, triangles: np.ndarray, parts: np.ndarr
     corners = positions[triangles]
     low, high = corners.min(axis=1), corners.max(axis=1)
     size = float(np.linalg.norm(high.max(0) - low.min(0))) or 1.0
-    candidates = _grid_pairs(low, high)
+    candidates = _grid_pairs(low, high, parts)
     first, second = candidates[:, 0], candidates[:, 1]
-    keep = (parts[first] != parts[second]) & (low[first] <= high[second]).all(1) & (low[second] <= high[first]).all(1)
-    candidates = candidates[keep]
+    candidates = candidates[(low[first] <= high[second]).all(1) & (low[second] <= high[first]).all(1)]
     crossing = np.concatenate([
         _cross(corners[batch[:, 0]], corners[batch[:, 1]], STRICT * size) | _cross(
             corners[batch[:, 1]], corners[batch[:, 0]], STRICT * size)
@@ -101,12 +99,11 @@ def winding_numbers(points: np.ndarray, corners: np.ndarray) -> np.ndarray:
     return 2.0 * np.arctan2(numerator, denominator).sum(axis=1) / (4.0 * np.pi)
 
 
-def _grid_pairs(low: np.ndarray, high: np.ndarray) -> np.ndarray:
-    """(K, 2) distinct pairs of triangles (first < second) whose bounding boxes (T, 3) share a cell of a grid of
-    about CELLS_PER_TRIANGLE cells a triangle, each at least the median box's longest side."""
-    span = high.max(0) - low.min(0)
-    volume = float(np.prod(np.maximum(span, 1e-12 * max(span.max(), 1e-300))))
-    cell = max(float(np.median((high - low).max(1))), (volume / (CELLS_PER_TRIANGLE * len(low))) ** (1 / 3))
+def _grid_pairs(low: np.ndarray, high: np.ndarray, parts: np.ndarray) -> np.ndarray:
+    """(K, 2) distinct pairs of triangles (first < second) of different `parts` whose bounding boxes (T, 3) share
+    a cell of a grid whose cells are the median box's longest side. Within a cell, a triangle pairs only with those
+    of parts after its own, so a part's own neighbours never make a pair."""
+    cell = max(float(np.median((high - low).max(1))), 1e-12 * float((high.max(0) - low.min(0)).max()), 1e-300)
     first_cell = np.floor((low - low.min(0)) / cell).astype(np.int64)
     last_cell = np.floor((high - low.min(0)) / cell).astype(np.int64)
     extent = last_cell - first_cell + 1
@@ -118,16 +115,24 @@ def _grid_pairs(low: np.ndarray, high: np.ndarray) -> np.ndarray:
                                                within // steps[:, 2] % steps[:, 1], within % steps[:, 2]], 1)
     dims = last_cell.max(0) + 1
     key = (cell_of[:, 0] * dims[1] + cell_of[:, 1]) * dims[2] + cell_of[:, 2]
-    order = np.argsort(key, kind="stable")
-    key, triangle = key[order], triangle[order]
-    run_end = np.r_[np.flatnonzero(key[1:] != key[:-1]) + 1, len(key)]
-    end_of = np.repeat(run_end, np.diff(np.r_[0, run_end]))
-    partners = end_of - np.arange(len(key)) - 1
+    order = np.lexsort((parts[triangle], key))
+    key, part, triangle = key[order], parts[triangle][order], triangle[order]
+    new_cell = np.r_[True, key[1:] != key[:-1]]
+    cell_end = _run_ends(new_cell)
+    part_end = _run_ends(new_cell | np.r_[True, part[1:] != part[:-1]])
+    partners = cell_end - part_end  # the entries of later parts in the same cell
     left = np.repeat(np.arange(len(key)), partners)
-    right = left + 1 + np.arange(len(left)) - np.repeat(np.cumsum(partners) - partners, partners)
+    right = np.repeat(part_end, partners) + np.arange(len(left)) - np.repeat(np.cumsum(partners) - partners, partners)
     first, second = np.minimum(triangle[left], triangle[right]), np.maximum(triangle[left], triangle[right])
-    codes = np.unique((first * len(low) + second)[first != second])  # a pair sharing several cells, once
+    codes = np.sort(first * len(low) + second)
+    codes = codes[np.r_[True, codes[1:] != codes[:-1]][: len(codes)]]  # a pair sharing several cells, once
     return np.stack([codes // len(low), codes % len(low)], 1)
+
+
+def _run_ends(starts: np.ndarray) -> np.ndarray:
+    """(n,) for each entry, the index after the last entry of its run (`starts` (n,) marks each run's first)."""
+    bounds = np.r_[np.flatnonzero(starts), len(starts)]
+    return np.repeat(bounds[1:], np.diff(bounds))
 
 
 def _cross(edges_of: np.ndarray, faces: np.ndarray, tolerance: float) -> np.ndarray:
