@@ -5,7 +5,7 @@ Stored layout (documented in the README; bump core.bake.CONVENTION_VERSION when 
   3j+2; the last one zero-padded). The leading `_` lets glTF export them. Coloured (interreflected) transfer has
   one such set per channel: `_prt_r00`..., `_prt_g00`..., `_prt_b00`....
 - FLOAT attribute `_prt_error`: the estimated relative standard error.
-- INT8 attribute `_prt_rule`: the rule that decided each point instead of rays (core.rules; 0: measured).
+- INT attribute `_prt_rule`: the rule that decided each point instead of rays (core.rules; 0: measured).
 - FLOAT attribute `_prt_validation_error` (optional, written by the panel's validation): the last validation's
   per-vertex (per-corner) error against Cycles, in the same domain. It goes with the bake it judged.
 - Their domain: POINT, one row per vertex, where every vertex is one shading point (core.corners), as in
@@ -74,7 +74,7 @@ def write_transfer(mesh, result, summary_fields: dict, settings: bake.BakeSettin
             mesh.attributes[name].data.foreach_set("vector", np.ascontiguousarray(padded[:, 3 * j: 3 * j + 3]).ravel())
     mesh.attributes.new(ERROR_ATTRIBUTE, "FLOAT", domain)
     mesh.attributes[ERROR_ATTRIBUTE].data.foreach_set("value", result.rel_error[rows].astype(np.float32))
-    mesh.attributes.new(RULE_ATTRIBUTE, "INT8", domain)
+    mesh.attributes.new(RULE_ATTRIBUTE, "INT", domain)
     mesh.attributes[RULE_ATTRIBUTE].data.foreach_set("value", result.rules[rows].astype(np.int32))
     if corner_points is not None:
         mesh.attributes.new(POINT_ATTRIBUTE, "INT", "CORNER")
