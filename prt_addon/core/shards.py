@@ -6,9 +6,9 @@ chunk's result where a one-process bake does, and bounces interreflections from 
 A part file is an .npz: its chunks' results as job_file saves a worker's (transfer, standard error, rays, which
 vertices were exact without rays, the rule that decided each, and in interreflected bakes the blocked rays' hit
 records), and `part`, a JSON string (PartInfo): the shard K/N, the bake's number of chunks, the scene file's name,
-the solved surfaces and the receivers, the settings (the ray engine among them: parts of one bake share it), each receiver's fingerprint, the
-shard's seconds (wall and CPU), rays, seconds baking and workers, and its engine as a report names it. A part is
-read as untrusted input (core.part_file).
+the solved surfaces and the receivers, the settings (the ray engine among them: parts of one bake share it), each
+receiver's fingerprint, the shard's seconds (wall and CPU), rays, seconds baking and workers, and its engine as a
+report names it. A part is read as untrusted input (core.part_file).
 """
 
 from collections import Counter

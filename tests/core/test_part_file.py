@@ -94,7 +94,8 @@ def hostile_parts(draw) -> bytes:
         if not flat.size:
             return part_bytes(GOOD)
         value = draw(st.sampled_from({"f": [np.nan, np.inf, -np.inf, -1.0, -1e-300, 1e300, 1.5],
-                                      "b": [2, 17, 255], "u": [rules.LARGEST + 1, 17, 255]}.get(array.dtype.kind, [-1, 2, 5, 17, 2 ** 62, -2 ** 63])))
+                                      "b": [2, 17, 255], "u": [rules.LARGEST + 1, 17, 255]}.get(
+                                          array.dtype.kind, [-1, 2, 5, 17, 2 ** 62, -2 ** 63])))
         flat[draw(st.integers(0, flat.size - 1))] = value
         return part_bytes({**GOOD, name: array})
     if kind == "array":  # another shape or dtype, a pickle, or a header claiming far more than it holds

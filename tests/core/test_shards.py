@@ -142,7 +142,8 @@ def test_a_merges_rays_per_second_and_workers_are_its_shards():
     now = [100.0]
     merge.progress = Progress("PRT bake", clock=lambda: now[0])  # the merge's own seconds, told by this clock
     parts += [(index, ChunkResult(np.zeros((len(rows), 4)), np.zeros(len(rows)), np.full(len(rows), 64),
-                                  np.zeros(len(rows), bool), rules.measured(len(rows)))) for index, (_, rows) in enumerate(merge.chunks)]
+                                  np.zeros(len(rows), bool), rules.measured(len(rows))))
+              for index, (_, rows) in enumerate(merge.chunks)]
     merge.run()
     now[0] = 103.0
     summary = merge.summary(merge.results())
