@@ -175,7 +175,7 @@ def test_a_receiver_hidden_in_renders_is_a_warning(empty_scene):
 def test_zero_area_faces_are_counted(empty_scene):
     add_mesh("Sliver", [(0, 0, 0), (1, 0, 0), (0, 1, 0), (2, 2, 0), (2, 2, 0), (3, 2, 0)], [(0, 1, 2), (3, 4, 5)])
     check = next(check for check in findings(gathered(["Sliver"]), "'Sliver'") if check.level == checks.WARNING)
-    assert "1 zero-area faces" in check.text
+    assert "1 zero-area and 0 sliver faces" in check.text and check.select == ("Sliver", "thin")
 
 
 def test_open_and_non_manifold_edges_are_information(empty_scene):

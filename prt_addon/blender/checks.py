@@ -13,6 +13,7 @@ from ..core import checks
 from ..core.checks import ERROR, INFO, WARNING, Check
 from . import geometry
 from .execute import first_job
+from .fault_checks import fault_checks
 
 # Modifiers that move vertices (a pose, a simulation, a procedural deformation): a dynamic object follows rigid motion
 # only. Geometry Nodes count, since they may deform.
@@ -58,6 +59,7 @@ def scene_checks(context, plan, executor) -> list[Check]:
     others = ([ob for ob in geometry.visible_mesh_objects(context) if ob not in receivers] if casts_rays else [])
     for ob in receivers + others:
         found += object_checks(ob, receiver=ob in receivers, casts_rays=casts_rays)
+    found += fault_checks(receivers, others)
     found += [Check(WARNING, "not baked", problem) for problem in plan.problems]
     found += [Check(INFO, "note", note) for note in plan.notes()]
     return found
@@ -84,7 +86,8 @@ def bake_size(plan, job, spawned: bool) -> checks.BakeSize:
 
 def object_checks(ob, receiver: bool, casts_rays: bool) -> list[Check]:
     """A mirrored object (its faces' winding turned, which decides their front for contact and bounced light),
-    and for receivers: hidden in renders, zero-area faces, open or non-manifold edges."""
+    and for receivers: hidden in renders, open or non-manifold edges (thin faces and the other faults of messy
+    models are blender.fault_checks')."""
     found = []
     name = repr(ob.name)
     if casts_rays and ob.matrix_world.determinant() < 0:
@@ -100,12 +103,6 @@ def object_checks(ob, receiver: bool, casts_rays: bool) -> list[Check]:
         found.append(Check(WARNING, name, "hidden in renders (Disable in Renders): it is baked, but a render "
                                           "will not show it"))
     mesh = ob.data
-    areas = np.empty(len(mesh.polygons))
-    mesh.polygons.foreach_get("area", areas)
-    degenerate = int((areas <= 0.0).sum())
-    if degenerate:
-        found.append(Check(WARNING, name, f"{degenerate} zero-area faces: they have no normal, and vertices only on "
-                                          f"them get zero transfer (Mesh > Clean Up > Degenerate Dissolve)"))
     faces_per_edge = edge_face_counts(mesh)
     boundary, shared = int((faces_per_edge == 1).sum()), int((faces_per_edge > 2).sum())
     if boundary or shared:

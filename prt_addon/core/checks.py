@@ -32,10 +32,11 @@ WARN_FRACTION = 0.8                  # of the available memory: beyond it the ma
 @dataclass(frozen=True)
 class Check:
     """One finding: its level, what it is about (an object's name, the output, memory, time) and the problem or
-    the figure, in words."""
+    the figure, in words; for a fault of a mesh, (object name, fault) to select its faces by (blender.fault_checks)."""
     level: str
     subject: str
     text: str
+    select: tuple = ()
 
     def line(self) -> str:
         return f"{self.level:<7} {self.subject}: {self.text}"
@@ -111,9 +112,9 @@ def bake_bytes(size: BakeSize) -> int:
 
 def stored_bytes(size: BakeSize) -> int:
     """The attributes written on the meshes (kept in memory and in the saved file): float32 vectors of 3
-    coefficients per channel, the error, and each split corner's point."""
+    coefficients per channel, the error, the rule that decided each row (int32), and each split corner's point."""
     vectors = -(-size.coefficients // 3) * 3
-    return size.stored_rows * (vectors * size.channels + 1) * 4 + size.split_corners * 4
+    return size.stored_rows * (vectors * size.channels + 2) * 4 + size.split_corners * 4
 
 
 def available_memory() -> int | None:

@@ -4,9 +4,13 @@ of the moment: never saved in the file (Check writes nothing), and cleared when 
 objects it does not describe."""
 
 import bpy
+from bpy.props import EnumProperty, StringProperty
+import numpy as np
 
 from ..blender.checks import all_checks
 from ..blender.execute import local_executor
+from ..blender.fault_checks import FAULTS, fault_faces
+from ..blender.geometry import visible_mesh_objects
 from ..blender.plan import plan_bake
 from ..blender.request import read_request
 from ..core import checks, settings as spec
@@ -58,15 +62,70 @@ class PRT_OT_check_bake(bpy.types.Operator):
         return {"FINISHED"}
 
 
+class PRT_OT_select_faults(bpy.types.Operator):
+    """Select the faces at this fault in Edit Mode"""
+    bl_idname = "prt.select_faults"
+    bl_label = "Select"
+    bl_options = {"REGISTER", "UNDO"}
+
+    object_name: StringProperty(name="Object")
+    fault: EnumProperty(name="Fault", items=[(fault, fault.capitalize(), "") for fault in FAULTS])
+
+    @classmethod
+    def poll(cls, context):
+        return context.mode in {"OBJECT", "EDIT_MESH"}
+
+    def execute(self, context):
+        ob = bpy.data.objects.get(self.object_name)
+        if ob is None or ob.type != "MESH":
+            self.report({"ERROR"}, f"no mesh object named {self.object_name!r}")
+            return {"CANCELLED"}
+        if context.mode != "OBJECT":
+            bpy.ops.object.mode_set(mode="OBJECT")
+        others = [other for other in visible_mesh_objects(context) if other is not ob]
+        faces = fault_faces(ob, self.fault, others)
+        select_faces(ob.data, faces)
+        for other in context.selected_objects:
+            other.select_set(False)
+        ob.select_set(True)
+        context.view_layer.objects.active = ob
+        bpy.ops.object.mode_set(mode="EDIT")
+        context.tool_settings.mesh_select_mode = (False, False, True)
+        self.report({"INFO"}, f"{ob.name}: {len(faces)} faces selected ({self.fault})")
+        return {"FINISHED"}
+
+
+def select_faces(mesh, faces):
+    """Selects exactly `faces` of the mesh, and their edges and vertices, as Edit Mode reads them."""
+    chosen = np.zeros(len(mesh.polygons), dtype=bool)
+    chosen[faces] = True
+    mesh.polygons.foreach_set("select", chosen)
+    sizes = np.empty(len(mesh.polygons), dtype=np.int32)
+    mesh.polygons.foreach_get("loop_total", sizes)
+    for elements, key in ((mesh.vertices, "vertex_index"), (mesh.edges, "edge_index")):
+        indices = np.empty(len(mesh.loops), dtype=np.int32)
+        mesh.loops.foreach_get(key, indices)
+        selected = np.zeros(len(elements), dtype=bool)
+        selected[indices[np.repeat(chosen, sizes)]] = True
+        elements.foreach_set("select", selected)
+
+
 def draw_checklist(layout, context):
-    """The Check button and the last checklist, one line per finding."""
+    """The Check button and the last checklist, one line per finding; a fault of a mesh has a Select button."""
     layout.operator("prt.check_bake", icon="VIEWZOOM")
     column = layout.column(align=True)
     for check in _checklist:
-        column.label(text=f"{check.subject}: {check.text}", icon=ICONS[check.level])
+        if not check.select:
+            column.label(text=f"{check.subject}: {check.text}", icon=ICONS[check.level])
+            continue
+        row = column.row(align=True)
+        row.label(text=f"{check.subject}: {check.text}", icon=ICONS[check.level])
+        select = row.operator("prt.select_faults", text="", icon="RESTRICT_SELECT_OFF")
+        select.object_name, select.fault = check.select
 
 
-_register_classes, _unregister_classes = bpy.utils.register_classes_factory((PRT_OT_check_bake,))
+_register_classes, _unregister_classes = bpy.utils.register_classes_factory((PRT_OT_check_bake,
+                                                                             PRT_OT_select_faults))
 
 
 def register():
