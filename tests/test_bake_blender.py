@@ -68,7 +68,7 @@ def test_bake_stores_attributes_and_metadata(empty_scene):
     select(floor)
     assert bake() == {"FINISHED"}
     names = [a.name for a in floor.data.attributes if a.name.startswith("_prt_")]
-    assert sorted(names) == sorted(COEFFICIENT_NAMES + ["_prt_error"])
+    assert sorted(names) == sorted(COEFFICIENT_NAMES + ["_prt_error", "_prt_rule"])
     assert all(floor.data.attributes[n].domain == "POINT" for n in names)
     transfer, meta = transfer_of(floor)
     assert transfer.shape == (81, 16) and transfer.dtype == np.float32
