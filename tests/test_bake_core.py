@@ -123,6 +123,29 @@ def test_any_polygon_keeps_the_estimate_unbiased():
     assert np.abs(blocked).max() > 0.05
 
 
+def test_a_row_clipped_by_its_face_plane_gathers_only_above_it():
+    """Under an open sky (the only occluder far below), a +Z normal clipped by a plane 60° from it gathers
+    (1 + cos 60°)/2 of its cosine-weighted sky (docs/cycles_conventions.md, R1): T_00 = 0.75·Y_00, and band 1 from
+    a quadrature of the lune over 2 M Fibonacci directions, with Y_1 = sqrt(3/4π)·(−y, z, −x)."""
+    tilt = np.radians(60.0)
+    receiver = receiver_copies(256)
+    receiver.clip = np.tile([np.sin(tilt), 0.0, np.cos(tilt)], (256, 1))
+    (result,), _ = run([receiver], disc(0.1, -5.0, segments=16), order=2, samples=64)
+    count = 2_000_000
+    z = 1.0 - (2.0 * np.arange(count) + 1.0) / count
+    azimuth = np.pi * (3.0 - np.sqrt(5.0)) * np.arange(count)
+    directions = np.stack([np.sqrt(1 - z * z) * np.cos(azimuth), np.sqrt(1 - z * z) * np.sin(azimuth), z], 1)
+    weight = np.where(directions @ receiver.clip[0] > 0, np.maximum(z, 0.0), 0.0) * 4.0 / count  # (1/π)·4π/n
+    c0, c1 = np.sqrt(1 / (4 * np.pi)), np.sqrt(3 / (4 * np.pi))
+    x, y = directions[:, 0], directions[:, 1]
+    expected = np.array([c0 * weight.sum(), *(c1 * np.array([-y, z, -x]) @ weight)])
+    assert abs(expected[0] - 0.75 * c0) < 1e-4
+    mean = result.transfer[:, :4].mean(0)
+    spread = result.transfer[:, :4].std(0) / np.sqrt(256)
+    assert np.all(np.abs(mean - expected) <= 4 * spread + 1e-4), (mean, expected, spread)
+    assert result.rays.min() > 0 and not result.skipped.any()
+
+
 def test_estimated_error_is_honest():
     """Actual error ÷ estimated standard error over 400 independent vertices has an RMS near 1."""
     radius, height = 1.0, 1.0

@@ -35,3 +35,16 @@ def mesh_corner_normals(mesh) -> np.ndarray:
     normals = np.empty(len(mesh.loops) * 3, dtype=np.float64)
     mesh.corner_normals.foreach_get("vector", normals)
     return normals.reshape(-1, 3)
+
+
+def mesh_corner_edges(mesh) -> np.ndarray:
+    """(C,) each face corner's edge, to its face's next corner."""
+    corner_edges = np.empty(len(mesh.loops), dtype=np.int64)
+    mesh.loops.foreach_get("edge_index", corner_edges)
+    return corner_edges
+
+
+def mesh_edge_vertices(mesh) -> np.ndarray:
+    edge_vertices = np.empty(len(mesh.edges) * 2, dtype=np.int64)
+    mesh.edges.foreach_get("vertices", edge_vertices)
+    return edge_vertices.reshape(-1, 2)

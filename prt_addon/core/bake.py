@@ -68,6 +68,9 @@ class Receiver:
     surface_step: np.ndarray | None = None
     # (V,) bool: rows whose normal points against their faces, black as Cycles shades them (core.corners); None: none.
     against: np.ndarray | None = None
+    # (V, 3) the unit face normal whose plane clips each row's sky (core.corners: the corners at a vertex of an edge
+    # with three or more faces), zero where none does; None: none does.
+    clip: np.ndarray | None = None
 
     @staticmethod
     def key_for(name: str) -> int:
@@ -78,7 +81,7 @@ class Receiver:
         def part(values):
             return None if values is None else values[rows]
         return Receiver(self.name, self.positions[rows], self.normals[rows], self.key, part(self.inward),
-                        part(self.ray_groups), part(self.surface_step), part(self.against))
+                        part(self.ray_groups), part(self.surface_step), part(self.against), part(self.clip))
 
 
 @dataclass

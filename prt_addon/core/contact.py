@@ -13,6 +13,10 @@ from . import corners
 # Faces count as facing when their normals are at least this far from perpendicular.
 FACING_COSINE = -0.05
 ON_SURFACE = 0.01  # of the ray offset: how far from a surface a point still lies on it
+# Lying on a surface takes facing it within 8°: a face at a steeper angle touches it along an edge only, and sees
+# past it (1 + n·n_s)/2 of the sky in Cycles (docs/cycles_conventions.md, R6), a sliver narrower than a step
+# included: its step cannot leave the surface it stands on.
+LYING_COSINE = -0.99
 TOUCH_REACH = 2.0  # of the ray offset: surfaces this near a point's vertex are touched (its origins lie within it)
 
 
@@ -20,14 +24,15 @@ def touched_surfaces(caster, surface, normals: np.ndarray, steps: np.ndarray):
     """(normals (c, 3), lying (c,) bool, ring (c, F)): the normal of the occluder face that each point faces most
     among those it touches (zero where there is none), whether it lies on a face it faces, and the occluder
     triangles that meet its vertex (padded with −1), for points at `surface` (c, 3) in the frame of `caster`
-    (core.ray_caster.RayCaster). A point is judged a step into its own faces, at `surface` + offset · `steps`
-    (along the faces: a step tangent to a leaning normal would dip under a floor the vertex rests on). It touches a
-    face it faces, with that step on the face's front side, that lies within one offset of the step (a fold of its
-    own surface over it, a floor under it) or, unless the face meets the point's vertex (has a corner at its
-    position), within TOUCH_REACH offsets of the vertex: a cone's apex (a sphere's pole on a floor) steps straight
-    up, out of the floor's reach, and the faces meeting at a vertex are its own surface, not one it touches. It
-    lies on a face within ON_SURFACE offsets of its step. The corner points of one vertex share the search at the
-    vertex, which also picks the points searched at their step (those facing some face near their vertex)."""
+    (core.ray_caster.RayCaster). A point is judged a step into its own faces, at `surface` + offset · `steps` (along
+    the faces: a step tangent to a leaning normal would dip under a floor the vertex rests on). It touches a face it
+    faces, with that step on the face's front side, that lies within one offset of the step (a fold of its own
+    surface over it, a floor under it) or, unless the face meets the point's vertex (has a corner at its position),
+    within TOUCH_REACH offsets of the vertex: a cone's apex (a sphere's pole on a floor) steps straight up, out of
+    the floor's reach, and the faces meeting at a vertex are its own surface, not one it touches. It lies on a face
+    within ON_SURFACE offsets of its step that it faces within 8° (LYING_COSINE). The corner points of one vertex
+    share the search at the vertex, which also picks the points searched at their step (those facing some face near
+    their vertex)."""
     offset = caster.offset
     stepped = surface + offset * steps
     row, face, location, face_normal, own, triangle = _near_vertices(caster, surface)
@@ -49,7 +54,7 @@ def touched_surfaces(caster, surface, normals: np.ndarray, steps: np.ndarray):
                         for point, nearest, normal in zip(stepped[at], near.location, near_normal)])
     touches = (near_dots < FACING_COSINE) & (heights > -ON_SURFACE * offset)
     lying = np.zeros(len(surface), dtype=bool)
-    lying[at[touches & (near.distance <= ON_SURFACE * offset)]] = True
+    lying[at[touches & (near.distance <= ON_SURFACE * offset) & (near_dots < LYING_COSINE)]] = True
     row = np.concatenate([row[kept], at[touches]])
     dots = np.concatenate([dots[kept], near_dots[touches]])
     normals_there = np.concatenate([face_normal[face[kept]], near_normal[touches]])

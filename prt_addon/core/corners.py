@@ -9,6 +9,11 @@ points V.. the further normals of split vertices, so a mesh without splits has e
 A corner whose normal points against its face (an OBJ's `vn` line against the face's winding) is black in Cycles
 (README, "Messy models: what Cycles decides"), whatever light its vertex's other corners with that normal gather: such
 corners are points of their own, marked `against`.
+
+Cycles also clips each corner by its own face's plane (README, "Messy models"). Around a closed surface the faces
+meeting at a vertex do that for one point; at a vertex of an edge with three or more faces (a fin on a tube) the
+corners sharing one averaged normal lie on faces that block each other's sky: there each face plane's corners are a
+point of their own, with that plane as its `clip`.
 """
 
 from dataclasses import dataclass
@@ -27,7 +32,7 @@ class ShadingPoints:
     point_normals: np.ndarray   # (P, 3) the corner normal each point is shaded with
     vertex_count: int
     against: np.ndarray | None = None  # (P,) bool: the point's corners' normal points against their faces; None: none
-
+    clip: np.ndarray | None = None  # (P, 3) the unit face normal whose plane clips the point's sky, zero for none
 
     @property
     def extra_points(self) -> int:
@@ -49,29 +54,44 @@ def unique_rows(rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return first, inverse.ravel()
 
 
-def against_faces(corner_normals: np.ndarray, positions: np.ndarray, corner_triangles: np.ndarray) -> np.ndarray:
-    """(C,) bool: each corner's normal (C, 3) points against its face, N·Ng < 0, with Ng the normal of the first
-    triangle (`corner_triangles` (T, 3) of corner indices, their vertices' `positions` given per corner (C, 3)) that
-    holds the corner: where Cycles' vertex-colour bake samples it. A corner on no triangle, or on a zero-area one
-    (whose Ng Cycles finds not a number: docs/cycles_conventions.md, R3), is not against its face."""
-    count = len(corner_normals)
+def first_triangle_normals(positions: np.ndarray, corner_triangles: np.ndarray) -> np.ndarray:
+    """(C, 3) each corner's face normal Ng, not normalised: that of the first triangle (`corner_triangles` (T, 3) of
+    corner indices, their vertices' `positions` given per corner (C, 3)) that holds the corner, where Cycles'
+    vertex-colour bake samples it; zero for a corner on no triangle or on a zero-area one (whose Ng Cycles finds
+    not a number: docs/cycles_conventions.md, R3)."""
+    count = len(positions)
     corners_ = positions[corner_triangles]
     face_normals = np.cross(corners_[:, 1] - corners_[:, 0], corners_[:, 2] - corners_[:, 0])
     first = np.full(count, len(corner_triangles))
     np.minimum.at(first, corner_triangles.ravel(), np.repeat(np.arange(len(corner_triangles)), 3))
+    found = np.zeros((count, 3))
     held = first < len(corner_triangles)
-    dots = np.einsum("ij,ij->i", corner_normals[held], face_normals[first[held]])
-    found = np.zeros(count, dtype=bool)
-    found[held] = dots < 0.0
+    found[held] = face_normals[first[held]]
     return found
 
 
+def against_faces(corner_normals: np.ndarray, face_normals: np.ndarray) -> np.ndarray:
+    """(C,) bool: each corner's normal (C, 3) points against its face, N·Ng < 0 (first_triangle_normals)."""
+    return np.einsum("ij,ij->i", corner_normals, face_normals) < 0.0
+
+
+def on_fins(corner_vertices: np.ndarray, corner_edges: np.ndarray, edge_vertices: np.ndarray) -> np.ndarray:
+    """(C,) bool: each corner's vertex (`corner_vertices` (C,)) ends an edge that three or more faces share, from
+    each corner's edge (`corner_edges` (C,), the edge to the face's next corner) and the edges' vertices (E, 2)."""
+    faces_per_edge = np.bincount(corner_edges, minlength=len(edge_vertices))
+    on_fin = np.zeros(max(int(corner_vertices.max(initial=-1)) + 1, int(edge_vertices.max(initial=-1)) + 1), bool)
+    on_fin[edge_vertices[faces_per_edge > 2].ravel()] = True
+    return on_fin[corner_vertices]
+
+
 def shading_points(corner_vertices: np.ndarray, corner_normals: np.ndarray, vertex_count: int,
-                   against: np.ndarray | None = None) -> ShadingPoints:
+                   against: np.ndarray | None = None, clip: np.ndarray | None = None) -> ShadingPoints:
     """Groups corners (C,) with normals (C, 3) into points, the corners `against` their faces (C,) bool apart from
-    the others (None: none is); a vertex without corners keeps a zero normal."""
+    the others (None: none is), and those of each distinct `clip` plane (C, 3) unit face normals, zero for corners
+    not clipped (None: none is); a vertex without corners keeps a zero normal."""
     rounded = np.round(np.asarray(corner_normals, dtype=np.float64), NORMAL_DECIMALS) + 0.0  # -0.0 → 0.0
     keys = [corner_vertices.astype(np.float64), rounded] + ([] if against is None else [against.astype(np.float64)])
+    keys += [] if clip is None else [np.round(clip, NORMAL_DECIMALS) + 0.0]
     # The order of the groups does not matter: points are numbered below.
     first_corner, group_of_corner = unique_rows(np.column_stack(keys))
     group_vertex = np.asarray(corner_vertices, dtype=np.int64)[first_corner]
@@ -91,7 +111,12 @@ def shading_points(corner_vertices: np.ndarray, corner_normals: np.ndarray, vert
     if against is not None and against.any():
         point_against = np.zeros(len(point_vertices), dtype=bool)
         point_against[point_of_group] = against[first_corner]
-    return ShadingPoints(point_of_group[group_of_corner], point_vertices, point_normals, vertex_count, point_against)
+    point_clip = None
+    if clip is not None and clip.any():
+        point_clip = np.zeros((len(point_vertices), 3))
+        point_clip[point_of_group] = clip[first_corner]
+    return ShadingPoints(point_of_group[group_of_corner], point_vertices, point_normals, vertex_count, point_against,
+                         point_clip)
 
 
 def unsplit_points(corner_vertices: np.ndarray, vertex_normals: np.ndarray) -> ShadingPoints:

@@ -53,18 +53,21 @@ def bake_chunk(caster, receiver: Receiver, rows: np.ndarray, settings: BakeSetti
         inward = np.zeros_like(normals) if receiver.inward is None else receiver.inward[rows]
         labels = None if receiver.ray_groups is None else receiver.ray_groups[rows]
         steps = None if receiver.surface_step is None else receiver.surface_step[rows]
+        clip = None if receiver.clip is None else receiver.clip[rows]
         result = yield from shadowed_chunk(caster, receiver.positions[rows], normals, inward, keys, settings, labels,
-                                           steps)
+                                           steps, clip)
     if against is not None:
         result.rules[against] = rules.AGAINST
     return result
 
 
 def shadowed_chunk(caster: RayCaster, positions, normals, inward, keys, settings: BakeSettings, labels=None,
-                   surface_steps=None):
+                   surface_steps=None, clip=None):
     """Generator: bakes one chunk, yielding the rays cast after each round; returns a ChunkResult. Rows with
     the same `labels` entry share their rays (None: each row casts its own); contact is judged a step along
-    `surface_steps` (None: `inward`)."""
+    `surface_steps` (None: `inward`). A row with a nonzero `clip` normal (c, 3; None: none) counts the directions
+    below that plane as blocked, as Cycles' corner on that face does (core.corners), and casts its own rays from
+    above that plane, a step into its face."""
     order, replicates = settings.order, settings.replicates
     positions = positions - caster.center
     count = len(positions)
@@ -76,9 +79,10 @@ def shadowed_chunk(caster: RayCaster, positions, normals, inward, keys, settings
     touched, lying, ring = contact.touched_surfaces(caster, positions, normals, steps)
     facing = np.einsum("ij,ij->i", touched, normals) < 0
     in_contact = has_surface & lying
+    clipped = np.zeros(count, dtype=bool) if clip is None else np.abs(clip).sum(-1) > 0
     # The hull test assumes rays start an offset along the normal; a point touching a surface starts them elsewhere
     # (below), and a surface it faces squarely at its own tangent plane (a sphere's pole on a floor) passes the test.
-    open_sky = provably_unoccluded(positions, normals, caster.hull, caster.offset) & ~facing
+    open_sky = provably_unoccluded(positions, normals, caster.hull, caster.offset) & ~facing & ~clipped
     skipped = has_surface & (open_sky | in_contact)
     rays = np.zeros(count, dtype=np.int64)  # cast from each row
     used = np.zeros(count, dtype=np.int64)  # each row's estimate rests on: its group's
@@ -87,10 +91,12 @@ def shadowed_chunk(caster: RayCaster, positions, normals, inward, keys, settings
     # from its own face.
     lifted = normals + touched
     lifted /= np.maximum(np.linalg.norm(lifted, axis=1, keepdims=True), 1e-12)
-    origins = positions + caster.offset * np.where(facing[:, None], lifted + steps, normals + inward)
+    lift = normals + inward if clip is None else np.where(clipped[:, None], clip + steps, normals + inward)
+    origins = positions + caster.offset * np.where(facing[:, None], lifted + steps, lift)
     baked = np.flatnonzero(has_surface & ~skipped)
     if labels is not None:
         labels = ray_groups.alone_unless_lifting(labels.copy(), baked, normals, touched)
+        labels[clipped] = -1 - np.flatnonzero(clipped)  # each its own plane: no shared origin clears the others
     # A shadowed bake needs no hit but whether there is one: the rays of a shared group that surely cross a face
     # meeting at its vertex are known blocked without a cast, 8.6 % of the flat-shaded cow's rays. Not those of a
     # row casting alone: 1.3 % of the smooth cow's, which cost less to cast than to test. The interreflected bake
@@ -132,9 +138,10 @@ def shadowed_chunk(caster: RayCaster, positions, normals, inward, keys, settings
                 groups = members[part]  # (g, k) rows
                 lattice = lattice_frames[part], None if floor is None else floor[part], points, shifts[part]
                 flat = None if cones is None else (cones[groups[:, 0]], flat_blocked[groups])
+                planes = clip[groups[:, 0]] if size == 1 and clipped[groups[:, 0]].any() else None
                 mean, variance, round_hits, cast = _blocked_round(
                     caster, origins[groups[:, 0]], normals[groups], lattice, unshadowed[groups], flat,
-                    rings.group_ring_planes(shared_rings, groups[:, 0]), settings)
+                    rings.group_ring_planes(shared_rings, groups[:, 0]), settings, planes)
                 rows = groups.ravel()
                 if hits is not None:
                     hits.append((rows[round_hits[0]], *round_hits[1:]))
@@ -178,7 +185,7 @@ def _records(hits, used):
     return interreflect.HitRecords(row, triangle, barycentric, weight / used[row], replicate)
 
 
-def _blocked_round(caster, origins, normals, lattice, unshadowed, flat, ring_planes, settings):
+def _blocked_round(caster, origins, normals, lattice, unshadowed, flat, ring_planes, settings, clip=None):
     """One round for g ray groups of k rows (origins (g, 3), the rest (g, k, ...)): each group casts R replicates of
     its own shifted lattice from its origin. `lattice`: each group's frames (g, 3, 3) and cap floor (g,) or None
     (see core.ray_groups), the lattice points (m, 2) and each group's shifts (g, R, 2). Returns the mean and
@@ -194,7 +201,8 @@ def _blocked_round(caster, origins, normals, lattice, unshadowed, flat, ring_pla
     visible fraction this round: β = 1 samples only blocked light (exact for an open vertex), β = 0 only visible light
     (exact for a buried one), in between it tracks the optimal coefficient.
     Rays are cast only where the answer is not known: one whose every weight is zero counts for nothing, and one that
-    surely crosses a triangle meeting at its group's vertex (`ring_planes`: the group's, or None) is blocked.
+    surely crosses a triangle meeting at its group's vertex (`ring_planes`: the group's, or None) is blocked, and so
+    is one below its group's `clip` plane (groups of one: (g, 3), zero for none; None: none).
     Flat polygons (`flat`: each group's cone planes (g, P, m, 3), the same for its rows as they share their origin,
     and the transfer G they block for each row; None without any) are exact: a ray counts as blocked only for what
     they do not explain, 1 − V − g with g its hits on them, and G is subtracted; unbiased for any polygon, and P's
@@ -229,6 +237,9 @@ def _blocked_round(caster, origins, normals, lattice, unshadowed, flat, ring_pla
         # flat-shaded cow's rays, nearly all of them hits, which cost the most).
         live = weights.reshape(groups, size, -1).max(axis=1) > 0.0
     known = None if ring_planes is None else rings.surely_hit(ring_planes, coordinates.astype(np.float32, copy=False))
+    if clip is not None:
+        below = np.matmul(clip[:, None].astype(dtype), coordinates)[:, 0] < 0.0  # (g, R·m)
+        known = below if known is None else known | below
     if known is not None:
         live = ~known if live is None else live & ~known
     cast_rays = np.full(groups, cast.shape[1]) if live is None else np.count_nonzero(live, axis=1)

@@ -10,7 +10,7 @@ import numpy as np
 
 from . import bake, estimator, interreflect, ray_caster, scheduling
 
-OPTIONAL_RECEIVER_ARRAYS = ("inward", "ray_groups", "surface_step", "against")  # bake.Receiver's, in their order
+OPTIONAL_RECEIVER_ARRAYS = ("inward", "ray_groups", "surface_step", "against", "clip")  # bake.Receiver's, in order
 RESULT_ARRAYS = ("transfer", "std_error", "rays", "skipped", "rules")  # bake.ChunkResult's but its records, in order
 
 

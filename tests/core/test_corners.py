@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from prt_addon.core.corners import against_faces, shading_points, unsplit_points
+from prt_addon.core.corners import against_faces, first_triangle_normals, on_fins, shading_points, unsplit_points
 
 # A unit cube, flat-shaded: 8 vertices, 6 quads, 24 corners; each vertex touches 3 faces with 3 normals.
 CUBE_FACES = {(0, 0, -1): (0, 2, 3, 1), (0, 0, 1): (4, 5, 7, 6), (0, -1, 0): (0, 1, 5, 4),
@@ -66,7 +66,7 @@ def test_a_corner_whose_normal_points_against_its_first_triangle_is_against_its_
     triangles = np.array([[0, 1, 2], [3, 4, 1]])
     normals = np.tile([0.0, 0.0, 1.0], (7, 1))
     normals[4] = [np.sin(np.radians(100.0)), 0.0, np.cos(np.radians(100.0))]
-    np.testing.assert_array_equal(against_faces(normals, positions, triangles), [0, 0, 0, 1, 0, 0, 0])
+    np.testing.assert_array_equal(against_faces(normals, first_triangle_normals(positions, triangles)), [0, 0, 0, 1, 0, 0, 0])
 
 
 def test_corners_against_their_faces_are_points_apart_from_the_corners_with_their_normal():
@@ -78,3 +78,25 @@ def test_corners_against_their_faces_are_points_apart_from_the_corners_with_thei
     np.testing.assert_array_equal(points.corner_points, [0, 2, 1, 1])
     np.testing.assert_array_equal(points.against, [False, False, True])
     assert shading_points(corner_vertices, normals, 2, np.zeros(4, dtype=bool)).against is None
+
+
+def test_corners_at_a_vertex_of_an_edge_of_three_faces_are_points_of_their_own_face_plane():
+    """Three quads share the edge of vertices 0-1 (a fin on a sheet's fold), one averaged normal at every corner:
+    vertices 0 and 1 become a point per face plane, each clipped by it; the outer vertices stay unsplit, unclipped."""
+    # quads (0 1 2 3), (1 0 4 5), (0 1 6 7); edges numbered as a mesh would: 0-1 is edge 0, held by all three
+    faces = [(0, 1, 2, 3), (1, 0, 4, 5), (0, 1, 6, 7)]
+    corner_vertices = np.array([v for face in faces for v in face])
+    edges = {}
+    for face in faces:
+        for k in range(4):
+            edges.setdefault(tuple(sorted((face[k], face[(k + 1) % 4]))), len(edges))
+    corner_edges = np.array([edges[tuple(sorted((face[k], face[(k + 1) % 4])))] for face in faces for k in range(4)])
+    edge_vertices = np.array(list(edges))
+    fins = on_fins(corner_vertices, corner_edges, edge_vertices)
+    np.testing.assert_array_equal(fins, np.isin(corner_vertices, [0, 1]))
+    planes = np.repeat(np.eye(3), 4, axis=0)  # each quad's own plane, as first_triangle_normals gives it
+    clip = np.where(fins[:, None], planes, 0.0)
+    points = shading_points(corner_vertices, np.tile([1.0, 1.0, 1.0], (12, 1)) / np.sqrt(3), 8, None, clip)
+    assert points.extra_points == 4 and points.split_vertices == 2
+    np.testing.assert_array_equal(points.clip[points.corner_points], clip)
+    np.testing.assert_array_equal(points.point_vertices[points.corner_points], corner_vertices)
