@@ -61,8 +61,8 @@ def fault_faces(ob, fault: str, others=()) -> np.ndarray:
         loops = mesh_triangles(mesh, of="loops").astype(np.int64)
         face = np.empty(len(loops), dtype=np.int64)
         mesh.loop_triangles.foreach_get("polygon_index", face)
-        against = corners.against_faces(mesh_corner_normals(mesh), mesh_positions(mesh)[mesh_corner_vertices(mesh)],
-                                        loops)
+        face_normals = corners.first_triangle_normals(mesh_positions(mesh)[mesh_corner_vertices(mesh)], loops)
+        against = corners.against_faces(mesh_corner_normals(mesh), face_normals)
         corner_face = np.zeros(len(mesh.loops), dtype=np.int64)
         corner_face[loops.ravel()] = np.repeat(face, 3)
         return np.unique(corner_face[against])
