@@ -67,7 +67,7 @@ def test_closed_box_sums_the_neumann_series_exactly(albedo):
     np.testing.assert_allclose(result.transfer, 0.0, atol=1e-12)  # no sky is visible from inside
     records = interreflect.HitRecords.concatenate(the_job.records)
     operator = interreflect.bounce_operator(records, triangles, len(vertices))
-    np.testing.assert_allclose(np.bincount(operator.rows, operator.values, len(vertices)), 1.0, atol=1e-12)
+    np.testing.assert_allclose(operator.apply(np.ones((len(vertices), 1))), 1.0, atol=1e-12)
     direct = np.zeros((len(vertices), 4))
     direct[:, 0] = 0.25
     total, report = interreflect.interreflect(direct, np.full((len(vertices), 1), albedo), operator,
@@ -76,6 +76,42 @@ def test_closed_box_sums_the_neumann_series_exactly(albedo):
     np.testing.assert_allclose(total[:, 0, 0], 0.25 / (1 - albedo), rtol=1e-4)
     np.testing.assert_allclose(total[:, 0, 1:], 0.0, atol=1e-12)
     assert 1 <= report.bounces < 200  # the geometric tail makes even ρ = 0.99 quick
+
+
+def random_records(rng, vertices, hits_per_row):
+    """Hit records of `vertices` casting vertices, row i with hits_per_row[i] hits on random triangles."""
+    rows = np.repeat(np.arange(vertices), hits_per_row)
+    count = len(rows)
+    return interreflect.HitRecords(rows, rng.integers(0, 2 * vertices, count), rng.dirichlet([1, 1, 1], count),
+                                   rng.random(count) / np.maximum(hits_per_row[rows], 1),
+                                   rng.integers(0, 4, count))
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_the_bounce_operator_is_the_sum_over_the_hits(seed):
+    """G @ x against the sum, hit by hit and corner by corner, of weight · β · x[corner] into the casting vertex's
+    row, one weighted bincount per column: equal to rounding, on rows full enough to be held dense, rows too
+    sparse for that, empty rows and hits on corners beyond the solved vertices."""
+    rng = np.random.default_rng(seed)
+    vertices = 300
+    hits_per_row = np.where(np.arange(vertices) < 150, rng.integers(200, 400, vertices), rng.integers(0, 4, vertices))
+    records = random_records(rng, vertices, hits_per_row)
+    triangles = rng.integers(0, vertices + 20, (2 * vertices, 3))  # some corners are instances', beyond the solved
+    operator = interreflect.bounce_operator(records, triangles, vertices)
+    assert operator.dense and operator.sparse
+    values = rng.standard_normal((vertices, 3, 16))
+    flat = values.reshape(vertices, -1)
+    corners = triangles[records.triangle].ravel()
+    inside = corners < vertices
+    rows = np.repeat(records.vertex, 3)[inside]
+    weights = (records.weight[:, None] * records.barycentric).ravel()[inside]
+    expected = np.stack([np.bincount(rows, weights * flat[corners[inside], column], minlength=vertices)
+                         for column in range(flat.shape[1])], axis=1)
+    bound = np.stack([np.bincount(rows, weights * np.abs(flat[corners[inside], column]), minlength=vertices)
+                      for column in range(flat.shape[1])], axis=1)  # |G| @ |x|: the scale of the sums' rounding
+    found = operator.apply(values).reshape(vertices, -1)
+    assert np.all(np.abs(found - expected) <= 1e-12 * bound)
+    assert not found[hits_per_row == 0].any()
 
 
 def test_auto_bounces_match_many_fixed_bounces_on_a_non_constant_transfer():
