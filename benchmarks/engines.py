@@ -15,8 +15,12 @@ depend on the engine's answers (a round's rays are fixed by the seed), so both e
    bake split into casting (occluded, hits), the contact search (nearest, BVHTree in both) and the rest.
 4. Memory: resident memory each engine adds, built over the dense scene (the Embree engine holds the contact
    search's BVHTree too).
+5. The Final preset on the demo (interreflected, order 6, target 0.5 %) with 2 workers, once per engine: wall time,
+   BVHTree ÷ Embree, and each bake split into its rays, its bounces (building G and bouncing) and their error
+   estimate; with the load average, as the bounces are most of it and share the machine. Not in --quick.
 
-Run from the repository root:  .venv/bin/python benchmarks/engines.py [--quick] [--json PATH] [--assets FOLDER]
+Run from the repository root:  .venv/bin/python benchmarks/engines.py [--quick | --final] [--json PATH]
+[--assets FOLDER]   (--final: section 5 alone)
 """
 
 import argparse
@@ -38,7 +42,7 @@ from prt_addon.blender.execute import execute, local_executor  # noqa: E402
 from prt_addon.blender.plan import plan_bake  # noqa: E402
 from prt_addon.blender.request import read_request, ray_engine_label  # noqa: E402
 from prt_addon.commands.common import schema_registered, write_json  # noqa: E402
-from prt_addon.core import bake, engines, executors, job  # noqa: E402
+from prt_addon.core import bake, engines, executors, job, presets  # noqa: E402
 
 ENGINES = ("embree", "bvhtree")
 EDGE = 1e-4   # barycentric margin within which float32 rounding decides whether a ray crosses a face
@@ -264,6 +268,28 @@ def engine_memory(caster) -> dict:
     return {"triangles": len(caster.triangles), "bytes": added, "embree_scene": added["embree"] - added["bvhtree"]}
 
 
+# -- 5. the Final preset ------------------------------------------------------------------------------------------
+def final_bakes() -> dict:
+    """The demo baked with the Final preset and 2 workers by each engine: wall seconds and the bake's phases."""
+    found = {}
+    for name in ENGINES:
+        assets.fresh_file()
+        assets.sample_scenes.build_demo_scene()
+        start = time.perf_counter()
+        plan = planned(bake.BakeSettings(**presets.preset_values("final"), ray_engine=name))
+        phases = execute(plan, local_executor(2)).run().summary.phases_s
+        wall = time.perf_counter() - start
+        split = {"rays_s": phases["rays_s"], "bounces_s": phases["gather_setup_s"] + phases["bounces_s"],
+                 "error_s": phases["bounce_error_s"]}
+        found[name] = {"wall_s": wall, **split, "rest_s": wall - sum(split.values()), "load": os.getloadavg()}
+        print(f"   {name:8} {wall:7.1f} s: rays {split['rays_s']:6.1f} s, bounces {split['bounces_s']:6.1f} s, "
+              f"their error {split['error_s']:6.1f} s, the rest {found[name]['rest_s']:5.1f} s  (load average "
+              f"{' '.join(f'{load:.1f}' for load in found[name]['load'])})", flush=True)
+    found["ratio"] = found["bvhtree"]["wall_s"] / found["embree"]["wall_s"]
+    print(f"   BVHTree ÷ Embree wall time {found['ratio']:.2f}×")
+    return found
+
+
 # -- the run -------------------------------------------------------------------------------------------------------
 def verdict(key, value) -> str:
     relation, goal = GOALS[key]
@@ -272,8 +298,10 @@ def verdict(key, value) -> str:
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description="Embree and BVHTree side by side")
-    parser.add_argument("--quick", action="store_true",
-                        help="smoke run: two small cases, 64 samples, one pass, the dense scene subdivided once")
+    which = parser.add_mutually_exclusive_group()
+    which.add_argument("--quick", action="store_true", help="smoke run: two small cases, 64 samples, one pass, the "
+                       "dense scene subdivided once, no Final bakes")
+    which.add_argument("--final", action="store_true", help="only section 5: the Final preset's bakes")
     parser.add_argument("--json", help="also write the figures as JSON here")
     parser.add_argument("--assets", default=assets.ASSETS, help="the folder of the public test meshes "
                         "benchmarks/assets.py's cases import (default: %(default)s)")
@@ -287,12 +315,27 @@ def main(argv=None) -> int:
 
 
 def run(args) -> int:
-    passes, samples = (1, 64) if args.quick else (3, 256)
     print(f"engines benchmark: {ray_engine_label('embree')} against {ray_engine_label('bvhtree')}"
           + ("  (quick: the goals are for the full run)" if args.quick else ""), flush=True)
     started = time.perf_counter()
+    figures = {"quick": args.quick}
+    if not args.final:
+        figures.update(engines_compared(args.quick))
+    if not args.quick:
+        print(f"\n5. The Final preset on the demo, 2 workers (cpu count {os.cpu_count()})")
+        figures["final"] = final_bakes()
+    print(f"\ntotal {(time.perf_counter() - started) / 60:.1f} min")
+    if args.json:
+        write_json(args.json, figures)
+        print(f"wrote {os.path.abspath(args.json)}")
+    return 0
+
+
+def engines_compared(quick: bool) -> dict:
+    """Sections 1 to 4."""
+    passes, samples = (1, 64) if quick else (3, 256)
     print("\n1. Agreement, ray by ray, on every ray of each case's bake (Embree's hits against BVHTree's)")
-    rows = agreement_cases(args.quick)
+    rows = agreement_cases(quick)
     rays = sum(row["rays"] for row in rows)
     worst = min(row["face_agreement"] for row in rows)
     reasons = sum((Counter(row["reasons"]) for row in rows), Counter())
@@ -308,7 +351,7 @@ def run(args) -> int:
     assets.fresh_file()
     assets.sample_scenes.build_demo_scene()
     casts = {"demo": casts_alone(*recorded_bake(bake.BakeSettings(samples=samples)), passes)}
-    dense = room_rays(256 if args.quick else 2048, args.quick)
+    dense = room_rays(256 if quick else 2048, quick)
     casts["dense"] = casts_alone(*dense, passes)
     for name, found in casts.items():
         rate = found["rays_per_s"]
@@ -330,12 +373,7 @@ def run(args) -> int:
     print(f"\n4. Memory over the dense scene ({memory['triangles']} faces): BVHTree {mb['bvhtree']:.0f} MB, Embree "
           f"engine {mb['embree']:.0f} MB (its scene {memory['embree_scene'] / 2 ** 20:.0f} MB, its contact "
           "search's BVHTree the rest)")
-    print(f"\ntotal {(time.perf_counter() - started) / 60:.1f} min")
-    if args.json:
-        write_json(args.json, {"quick": args.quick, "agreement": rows, "casts": casts, "memory": memory,
-                               "whole_bake": whole})
-        print(f"wrote {os.path.abspath(args.json)}")
-    return 0
+    return {"agreement": rows, "casts": casts, "memory": memory, "whole_bake": whole}
 
 
 if __name__ == "__main__":
