@@ -25,9 +25,8 @@ def mesh_triangles(mesh, of: str = "vertices") -> np.ndarray:
 
 
 def mesh_corner_vertices(mesh) -> np.ndarray:
-    corner_vertices = np.empty(len(mesh.loops), dtype=np.int64)
-    mesh.loops.foreach_get("vertex_index", corner_vertices)
-    return corner_vertices
+    """(C,) each face corner's vertex."""
+    return _per_corner(mesh, "vertex_index")
 
 
 def mesh_corner_normals(mesh) -> np.ndarray:
@@ -39,9 +38,13 @@ def mesh_corner_normals(mesh) -> np.ndarray:
 
 def mesh_corner_edges(mesh) -> np.ndarray:
     """(C,) each face corner's edge, to its face's next corner."""
-    corner_edges = np.empty(len(mesh.loops), dtype=np.int64)
-    mesh.loops.foreach_get("edge_index", corner_edges)
-    return corner_edges
+    return _per_corner(mesh, "edge_index")
+
+
+def _per_corner(mesh, name: str) -> np.ndarray:
+    values = np.empty(len(mesh.loops), dtype=np.int64)
+    mesh.loops.foreach_get(name, values)
+    return values
 
 
 def mesh_edge_vertices(mesh) -> np.ndarray:

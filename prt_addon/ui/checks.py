@@ -11,6 +11,7 @@ from ..blender.checks import all_checks
 from ..blender.execute import local_executor
 from ..blender.fault_checks import FAULTS, fault_faces
 from ..blender.geometry import visible_mesh_objects
+from ..blender.mesh_arrays import mesh_corner_edges, mesh_corner_vertices
 from ..blender.plan import plan_bake
 from ..blender.request import read_request
 from ..core import checks, settings as spec
@@ -102,9 +103,7 @@ def select_faces(mesh, faces):
     mesh.polygons.foreach_set("select", chosen)
     sizes = np.empty(len(mesh.polygons), dtype=np.int32)
     mesh.polygons.foreach_get("loop_total", sizes)
-    for elements, key in ((mesh.vertices, "vertex_index"), (mesh.edges, "edge_index")):
-        indices = np.empty(len(mesh.loops), dtype=np.int32)
-        mesh.loops.foreach_get(key, indices)
+    for elements, indices in ((mesh.vertices, mesh_corner_vertices(mesh)), (mesh.edges, mesh_corner_edges(mesh))):
         selected = np.zeros(len(elements), dtype=bool)
         selected[indices[np.repeat(chosen, sizes)]] = True
         elements.foreach_set("select", selected)
