@@ -145,13 +145,8 @@ def test_display_panel_draws_the_mode_and_the_legend(baked, prt, addon):
     display = bpy.context.scene.prt_display
     display.mode = "ERROR"
     update()
-    drawn, labels = [], []
-
-    class Layout(FakeLayout):
-        def label(self, text="", **kwargs):
-            labels.append(text)
-
-    bpy.types.PRT_PT_display.draw(SimpleNamespace(layout=Layout(drawn)), bpy.context)
+    drawn = []
+    labels = labels_drawn(bpy.types.PRT_PT_display, drawn)
     assert "mode" in drawn
     top = prt.handlers.engine.legend.top
     assert f"Estimated relative error: {heatmap.range_label(top)}" in labels
@@ -160,9 +155,7 @@ def test_display_panel_draws_the_mode_and_the_legend(baked, prt, addon):
     assert not [label for label in labels if label.startswith("Grey")]
     display.mode = "DIFFERENCE"
     update()
-    labels.clear()
-    bpy.types.PRT_PT_display.draw(SimpleNamespace(layout=Layout(drawn)), bpy.context)
-    assert "Grey, not validated: Cube, Grid" in labels
+    assert "Grey, not validated: Cube, Grid" in labels_drawn(bpy.types.PRT_PT_display, drawn)
 
 
 def test_decided_by_rule_shows_each_points_rule_in_its_colour_and_the_panels_count_them(empty_scene, prt, addon):
@@ -188,17 +181,21 @@ def test_decided_by_rule_shows_each_points_rule_in_its_colour_and_the_panels_cou
     for ob in (floor, cube):
         rgba, _ = shown(ob.data)
         np.testing.assert_array_equal(rgba, heatmap.rule_rgba(codes[ob.name]), err_msg=ob.name)
-    drawn, labels = [], []
+    assert "Lying on a surface (black): 5 points" in labels_drawn(bpy.types.PRT_PT_display, [])
+    bpy.context.view_layer.objects.active = cube
+    assert "  4 lying on a surface (black)" in labels_drawn(bpy.types.PRT_PT_bake_info, [])
+
+
+def labels_drawn(panel, drawn: list) -> list[str]:
+    """The texts of the labels `panel` draws now, the properties it draws added to `drawn`."""
+    labels = []
 
     class Layout(FakeLayout):
         def label(self, text="", **kwargs):
             labels.append(text)
 
-    bpy.types.PRT_PT_display.draw(SimpleNamespace(layout=Layout(drawn)), bpy.context)
-    assert "Lying on a surface (black): 5 points" in labels
-    bpy.context.view_layer.objects.active = cube
-    bpy.types.PRT_PT_bake_info.draw(SimpleNamespace(layout=Layout(drawn)), bpy.context)
-    assert "  4 lying on a surface (black)" in labels
+    panel.draw(SimpleNamespace(layout=Layout(drawn)), bpy.context)
+    return labels
 
 
 def stored_codes(mesh) -> np.ndarray:
