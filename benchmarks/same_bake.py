@@ -173,6 +173,8 @@ def read_baked(path, scene: str) -> dict:
             if not attribute.name.startswith("."):
                 arrays[f"{scene}/{ob.name}/{attribute.name}"] = attribute_values(attribute)
         meta = {key: value for key, value in ob.data["prt"].to_dict().items() if key not in VOLATILE}
+        for row in meta.get("error_curve", []):
+            del row["seconds"]  # as time_s: differs between any two bakes
         arrays[f"{scene}/{ob.name}/metadata"] = np.array(json.dumps(meta, sort_keys=True, default=list))
     for image in sorted(bpy.data.images, key=lambda image: image.name):
         if image.name.startswith(IMAGE_PREFIX):

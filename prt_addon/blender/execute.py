@@ -16,7 +16,7 @@ import sys
 import bpy
 import numpy as np
 
-from ..core import executors, interpolation, job, lobes, texel_gather, texel_refine
+from ..core import error_curve, executors, interpolation, job, lobes, texel_gather, texel_refine
 from ..core.statistics import rms
 from ..core.errors import InputError
 from ..core.progress import JobSequence, WrappingJob
@@ -235,4 +235,5 @@ def merged_summary(outcomes: list, time_s: float) -> job.Summary:
             1, sum(summary.interp_points for summary in measured))))
         merged.est_interp_max_rel_error = max(summary.est_interp_max_rel_error for summary in measured)
     merged.ray_engine = next((summary.ray_engine for summary in summaries if summary.ray_engine), "")
+    merged.error_curve = error_curve.added([summary.error_curve for summary in summaries])
     return merged

@@ -60,6 +60,7 @@ def _store_one(plan: BakePlan, results: BakeResults) -> BakeReport:
         fields = {"time_s": summary.time_s, fingerprint.FINGERPRINT_KEY: plan.request.fingerprints[name],
                   **{key: summary.per_object[name][key] for key in INTERPOLATION_KEYS
                      if key in summary.per_object[name]}}
+        fields["error_curve"] = [asdict(row) for row in summary.per_object[name]["error_curve"]]
         if summary.bounces is not None:
             fields["bounces"] = summary.bounces
         if summary.ray_engine:

@@ -147,6 +147,7 @@ def run(args, in_blender: bool) -> int:
         checks.stop_on_errors(found)
         report = store(plan, execute(plan, executor).run(log=log))
     log(report.summary.line())
+    log(report.summary.curve_line())
     save_bake(report, args.output, args.report)
     return 0
 

@@ -70,6 +70,7 @@ def save_baked_demo(blend_path: str, workers: int, samples: int) -> dict:
     plan = plan_bake(read_request(bpy.context, settings))
     stored = store(plan, execute(plan, local_executor(worker_count(workers))).run(log=log))
     log(stored.summary.line())
+    log(stored.summary.curve_line())
     bake_report = stored.as_dict()  # before the file is reopened and these objects go
 
     scene = bpy.context.scene

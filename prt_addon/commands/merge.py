@@ -29,5 +29,6 @@ def run(args, in_blender: bool) -> int:
     report = merge_parts(bpy.context, parts, log=log)
     warn(report.problems + report.notes)
     log(report.summary.line())
+    log(report.summary.curve_line())
     save_bake(report, args.output, args.report)
     return 0

@@ -132,4 +132,5 @@ class ChunkResult:
     rays: np.ndarray       # (c,) rays cast from each vertex (its estimate also uses its ray group's)
     skipped: np.ndarray    # (c,) bool: exact without rays (provably unoccluded, or in contact)
     rules: np.ndarray      # (c,) uint8: the rule that decided each point (core.rules), MEASURED where none did
+    curve: np.ndarray      # (r, 3) float64: after each of its r ≥ 1 rounds, core.error_curve.CHUNK_COLUMNS
     records: interreflect.HitRecords | None = None  # interreflected mode: blocked rays' hits (chunk-local rows)

@@ -11,9 +11,11 @@ Shadowed estimator (what makes it cheap compared with the original program's uni
 - with a target error, rounds double the rays per replicate until each vertex meets the target.
 """
 
+import time
+
 import numpy as np
 
-from . import arrays, contact, interreflect, polygons, ray_groups, rings, rules, sampling, scheduling, sh
+from . import arrays, contact, error_curve, interreflect, polygons, ray_groups, rings, rules, sampling, scheduling, sh
 from .bake import BakeSettings, ChunkResult, Receiver
 from .lobes import unshadowed_transfer
 from .ray_caster import RayCaster
@@ -47,7 +49,8 @@ def bake_chunk(caster, receiver: Receiver, rows: np.ndarray, settings: BakeSetti
     if settings.mode == "unshadowed" or caster is None:
         count = len(rows)
         result = ChunkResult(unshadowed_transfer(settings.order, normals), np.zeros(count),
-                             np.zeros(count, dtype=np.int64), np.zeros(count, dtype=bool), rules.measured(count))
+                             np.zeros(count, dtype=np.int64), np.zeros(count, dtype=bool), rules.measured(count),
+                             np.array([error_curve.chunk_row(0.0, 0, np.zeros(0))]))
     else:
         keys = scheduling.vertex_keys(receiver, rows)
         inward = np.zeros_like(normals) if receiver.inward is None else receiver.inward[rows]
@@ -67,7 +70,9 @@ def shadowed_chunk(caster: RayCaster, positions, normals, inward, keys, settings
     the same `labels` entry share their rays (None: each row casts its own); contact is judged a step along
     `surface_steps` (None: `inward`). A row with a nonzero `clip` normal (c, 3; None: none) counts the directions
     below that plane as blocked, as Cycles' corner on that face does (core.corners), and casts its own rays from
-    above that plane, a step into its face."""
+    above that plane, a step into its face. The result's curve has a row after each round (core.error_curve), its
+    seconds those this generator spent working, not those it waited between yields."""
+    resumed, busy = time.perf_counter(), 0.0
     order, replicates = settings.order, settings.replicates
     positions = positions - caster.center
     count = len(positions)
@@ -112,6 +117,7 @@ def shadowed_chunk(caster: RayCaster, positions, normals, inward, keys, settings
     cones, flat_blocked = _flat_shadows(caster, origins, normals, order)
     shared_rings = rings.shared_ring_planes(caster, sets, origins, ring, ring_sizes) if predicting else None
     rounds = []  # (rows, rays per row, transfer mean, transfer variance), combined below
+    curve = []  # core.error_curve's row after each round
     hits = [] if settings.mode == "interreflected" else None  # (chunk row, triangle, barycentric, weight)
     plan = [(settings.points_per_replicate, members, lattice) for members, lattice in zip(sets, lattices)]
     for round_index in range(scheduling.MAX_ROUNDS):
@@ -148,20 +154,25 @@ def shadowed_chunk(caster: RayCaster, positions, normals, inward, keys, settings
                 rounds.append((rows, group_rays, mean.reshape(len(rows), -1), variance.reshape(len(rows), -1)))
                 used[rows] += group_rays
                 rays[groups[:, 0]] += cast  # a group's rays are counted at its first row
+                busy += time.perf_counter() - resumed
                 yield int(cast.sum())
+                resumed = time.perf_counter()
         if settings.target_error <= 0.0:
             break
         _, error = scheduling.combine(rounds, used, count, order)
+        curve.append(error_curve.chunk_row(busy + time.perf_counter() - resumed, rays.sum(), error))
         plan = [(size, members[chosen], (frames[chosen], None if floor is None else floor[chosen]))
                 for members, (frames, floor) in zip(sets, lattices)
                 for size, chosen in scheduling.next_rounds(error[members].max(1), used[members[:, 0]], settings)]
     transfer, error = scheduling.combine(rounds, used, count, order)
+    if not curve or curve[-1][1] < rays.sum():  # without a target: its one round; or no round at all
+        curve.append(error_curve.chunk_row(busy + time.perf_counter() - resumed, rays.sum(), error))
     transfer[used == 0] = unshadowed[used == 0]  # exact: provably unoccluded, or no surface (zero)
     transfer[in_contact] = 0.0  # exact: every direction is blocked by the surface it rests on
     decided = rules.measured(count)
     decided[has_surface & facing] = rules.TOUCHING
     decided[in_contact] = rules.LYING
-    return ChunkResult(transfer, error, rays, skipped, decided, _records(hits, used))
+    return ChunkResult(transfer, error, rays, skipped, decided, np.array(curve), _records(hits, used))
 
 
 def _flat_shadows(caster, origins, normals, order):

@@ -10,10 +10,13 @@ import time
 
 import numpy as np
 
-from . import bake, interreflect, lobes, rules, scheduling
+from . import bake, error_curve, interreflect, lobes, rules, scheduling
 from .executors import InProcess
 from .progress import Job, Progress
 from .statistics import rms
+
+
+BOUNCE_PHASES = ("gather_setup_s", "bounces_s", "bounce_error_s")  # phase_times after the rays, bouncing
 
 
 @dataclass
@@ -58,6 +61,7 @@ class Summary:
     interp_rays: int = 0
     ray_engine: str = ""  # the engine that cast the rays, with its version ("" where none was cast)
     decided_by_rule: dict = field(default_factory=dict)  # points each rule decided (core.rules.counts), non-zero
+    error_curve: list = field(default_factory=list)  # core.error_curve.Row after each round, bounces, texel lattices
 
     def line(self) -> str:
         bounced = (f", {self.bounces} bounces in {self.phases_s.get('bounces_s', 0.0):.2f} s "
@@ -76,6 +80,10 @@ class Summary:
                 f"{self.skipped_vertices} vertices exact without rays, "
                 f"est. RMS rel. error {self.est_rms_rel_error:.4f}, max {self.est_max_rel_error:.4f}{between}"
                 f"{bounced}{ruled}")
+
+    def curve_line(self) -> str:
+        """The bake's error against its run time in one line (core.error_curve), logged after line()."""
+        return "PRT bake " + error_curve.line(self.error_curve)
 
 
 class TransferJob(Job):
@@ -111,6 +119,7 @@ class TransferJob(Job):
         self._rays = [np.zeros(len(r.positions), dtype=np.int64) for r in receivers]
         self._skipped = [np.zeros(len(r.positions), dtype=bool) for r in receivers]
         self._rules = [rules.measured(len(r.positions)) for r in receivers]
+        self._curves = [[] for _ in receivers]  # each chunk's core.error_curve rows, per receiver
         self.records = []  # interreflected: HitRecords per chunk, rows already global
         self.albedo = albedo
         self.bounce_report = None
@@ -167,6 +176,7 @@ class TransferJob(Job):
         self._rays[receiver_index][rows] = result.rays
         self._skipped[receiver_index][rows] = result.skipped
         self._rules[receiver_index][rows] = result.rules
+        self._curves[receiver_index].append(result.curve)
         if result.records is not None:
             solved = self._vertex_offsets[receiver_index] + rows[result.records.vertex]
             self.records.append(interreflect.HitRecords(solved, result.records.triangle, result.records.barycentric,
@@ -226,6 +236,10 @@ class TransferJob(Job):
             }
             for receiver, result in zip(receivers, results)
         }
+        own, rays_s = self.results(), self.phase_times.get("rays_s", own_s) + self.phase_times.get("shards_rays_s", 0.0)
+        curve = self.error_rows(rays_s, own, len(results))
+        for index, receiver in enumerate(receivers[:len(results)]):
+            per_object[receiver.name]["error_curve"] = self.error_rows(rays_s, own, len(results), index, curve)
         return Summary(
             objects=len(results), vertices=int(len(rel)), points=int(len(rel)), order=self.settings.order,
             mode=self.settings.mode,
@@ -241,5 +255,25 @@ class TransferJob(Job):
             bounce_tail=self.bounce_report.tail if self.bounce_report else 0.0,
             bounces_converged=self.bounce_report.converged if self.bounce_report else True,
             albedo_clamped=bool(self.bounce_report and self.bounce_report.albedo_clamped),
-            decided_by_rule=rules.total(entry["decided_by_rule"] for entry in per_object.values()))
+            decided_by_rule=rules.total(entry["decided_by_rule"] for entry in per_object.values()),
+            error_curve=curve)
 
+    def error_rows(self, rays_s: float, own: list, stored: int, index=None, bake_rows=None) -> list:
+        """The error against time (core.error_curve) of the `stored` first receivers (the others only bounce
+        light), or of receiver `index` at the bake's seconds (`bake_rows`): after each round of its chunks, and
+        after the bounces. `own`: this job's results; its chunks took `rays_s` seconds."""
+        scale = lobes.unshadowed_norm(self.settings.order)
+        kept = range(stored) if index is None else [index]
+        curves = [curve for i in kept for curve in self._curves[i]]
+        points = sum(len(self.receivers[i].positions) for i in kept)
+        if index is None:
+            busy = sum(curve[-1, 0] for receiver in self._curves for curve in receiver)
+            rows = error_curve.rounds(curves, points, scale, rays_s / busy if busy > 0 else 0.0)
+        else:
+            rows = error_curve.part(bake_rows, curves, points, scale)
+        if self.bounce_report is not None and rows:
+            bounced_s = (rows[-1].seconds + sum(self.phase_times.get(phase, 0.0) for phase in BOUNCE_PHASES)
+                         if index is None else bake_rows[len(rows)].seconds)
+            rows = error_curve.then(rows, error_curve.BOUNCES, bounced_s, rows[-1].rays,
+                                    np.concatenate([own[i].rel_error for i in kept]))
+        return rows

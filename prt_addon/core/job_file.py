@@ -11,7 +11,7 @@ import numpy as np
 from . import bake, estimator, interreflect, ray_caster, scheduling
 
 OPTIONAL_RECEIVER_ARRAYS = ("inward", "ray_groups", "surface_step", "against", "clip")  # bake.Receiver's, in order
-RESULT_ARRAYS = ("transfer", "std_error", "rays", "skipped", "rules")  # bake.ChunkResult's but its records, in order
+RESULT_ARRAYS = ("transfer", "std_error", "rays", "skipped", "rules", "curve")  # bake.ChunkResult's but its records, in order
 
 
 def worker_process_command(python_prefix, job_file, out_file, chunk_indices):

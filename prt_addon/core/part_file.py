@@ -21,9 +21,11 @@ import numpy as np
 
 from . import rules as decided
 from .bake import BakeSettings, ChunkResult
+from .error_curve import CHUNK_COLUMNS
 from .errors import InputError
 from .interreflect import HitRecords
 from .job_file import RESULT_ARRAYS
+from .scheduling import MAX_ROUNDS
 from .shards import PART_FORMAT, PROBES, PartInfo, shown
 from .workers import shard_chunks
 
@@ -209,8 +211,13 @@ def _chunk(archive, prefix: str, slot: int, rows: int, shape: PartShape, records
     _check((skipped.view(np.uint8) <= 1).all(), f"has values neither true nor false in {name}")
     name, rules = read("rules", decided.DTYPE, (rows,))
     _check((rules <= decided.LARGEST).all(), f"has rule codes outside 0-{decided.LARGEST} in {name}")
+    name, curve = read("curve", np.float64, (None, len(CHUNK_COLUMNS)), MAX_ROUNDS)
+    _check(len(curve) > 0 and np.isfinite(curve).all() and (curve >= 0).all()
+           and (np.diff(curve[:, :2], axis=0) >= 0).all() and curve[-1, 1] == rays.sum(),
+           f"has an error curve that is not a bake's (rows after each round: seconds and rays growing, the last "
+           f"row's rays the chunk's) in {name}")
     hits = _records(read, rows, shape) if records else None
-    return ChunkResult(transfer, std_error, rays, skipped, rules, hits)
+    return ChunkResult(transfer, std_error, rays, skipped, rules, curve, hits)
 
 
 def _records(read, rows: int, shape: PartShape) -> HitRecords:

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import bake, lobes, rules
+from . import bake, error_curve, lobes, rules
 from .job import ReceiverResult
 from .progress import Job, Progress
 
@@ -265,8 +265,17 @@ class RefiningJob(Job):
         self.jobs[-1].cancel()
 
     def summary(self, results):
-        """The bake's summary over every receiver and every lattice's job."""
-        return self.first.summary(results, self.receivers, self.progress.elapsed)
+        """The bake's summary over every receiver and every lattice's job; its error against time ends with what
+        the lattices after the first job gave."""
+        summary = self.first.summary(results, self.receivers, self.progress.elapsed)
+        if len(self.jobs) > 1:
+            summary.error_curve = error_curve.then(summary.error_curve, error_curve.TEXELS, summary.time_s,
+                                                   summary.rays, np.concatenate([r.rel_error for r in results]))
+            for receiver, result in zip(self.receivers, results):
+                entry = summary.per_object[receiver.name]
+                entry["error_curve"] = error_curve.then(entry["error_curve"], error_curve.TEXELS, summary.time_s,
+                                                        entry["rays"], result.rel_error)
+        return summary
 
     def results(self) -> list:
         """Per receiver in order: the first job's result, or the texel receiver's refined one."""

@@ -16,6 +16,7 @@ def _report_outcome(operator, report):
     for problem in report.problems + report.notes:
         operator.report({"WARNING"}, problem)
     operator.report({"INFO"}, report.summary.line())
+    operator.report({"INFO"}, report.summary.curve_line())
 
 
 class ModalJob:
@@ -135,6 +136,7 @@ class BakeJob(ModalJob):
     def finish(self, context, scene_bake, summary):
         _report_outcome(self, scene_bake.report())
         print(summary.line())
+        print(summary.curve_line())
 
 
 class PRT_OT_bake(BakeJob, bpy.types.Operator):

@@ -39,7 +39,7 @@ def chunk(rows: int, seed: int, records: bool) -> ChunkResult:
                           np.array([0, 1, 2, 3]))
     return ChunkResult(random.normal(size=(rows, 4)), random.uniform(0, 0.1, rows), np.full(rows, 8),
                        np.array([False] * (rows - 1) + [True]), np.arange(rows, dtype=np.uint8) % (rules.LARGEST + 1),
-                       hits)
+                       np.array([[0.5, 4.0 * rows, 0.02], [1.0, 8.0 * rows, 0.01]]), hits)
 
 
 def good_members() -> dict:
@@ -198,6 +198,9 @@ def test_the_good_part_and_its_deflated_copy_are_read_whole(tmp_path):
     (part_bytes({**GOOD, "std_error_1": -GOOD["std_error_1"] - 1}), "negative values in std_error_1"),
     (part_bytes({**GOOD, "rays_0": np.full(3, -1)}), "ray counts outside 0-16 in rays_0"),
     (part_bytes({**GOOD, "rules_1": np.full(2, 200, np.uint8)}), f"rule codes outside 0-{rules.LARGEST} in rules_1"),
+    (part_bytes({**GOOD, "curve_1": GOOD["curve_1"][::-1]}), "error curve that is not a bake's"),
+    (part_bytes({**GOOD, "curve_0": GOOD["curve_0"] * [1, 2, 1]}), "error curve that is not a bake's"),
+    (part_bytes({**GOOD, "curve_0": np.zeros((7, 3))}), "curve_0.npy of shape (7, 3), not (up to 6, 3)"),
     (part_bytes({**GOOD, "records_vertex_1": GOOD["records_vertex_1"] + 2}), "outside its chunk's 2 in records_v"),
     (part_bytes({**GOOD, "records_triangle_0": GOOD["records_triangle_0"] + 5}), "outside the scene's 5"),
     (part_bytes({**GOOD, "records_barycentric_0": GOOD["records_barycentric_0"] * 2}), "not summing to 1"),
@@ -206,7 +209,7 @@ def test_the_good_part_and_its_deflated_copy_are_read_whole(tmp_path):
     (part_bytes({**GOOD, "transfer_1": GOOD["transfer_1"].astype(np.float32)}), "float32, not float64"),
     (part_bytes(with_description(shards=10 ** 9)), "is shard 1/1000000000, the others are of 1"),
     (part_bytes(with_description(shards="1")), "whose shards is '1', not a whole number"),
-    (part_bytes(with_description(format="prt-part-5")), "of another format than prt-part-8"),
+    (part_bytes(with_description(format="prt-part-5")), f"of another format than {shards.PART_FORMAT}"),
     (part_bytes(with_description(settings={**SETTINGS, "order": 2.0})), "setting order 2.0, not of the type int"),
     (part_bytes(with_description(settings={**SETTINGS, "samples": 10 ** 9})), "settings no bake takes: samples"),
     (archive([(key, npy_header((1 << 27, 4)) + bytes(1 << 20) if key == "transfer_0" else npy(value))
@@ -214,7 +217,7 @@ def test_the_good_part_and_its_deflated_copy_are_read_whole(tmp_path):
     (GOOD_BYTES[:-30], "is not a readable PRT part file (BadZipFile"),
     (b"", "is not a readable PRT part file (BadZipFile"),
     (part_bytes(GOOD, zipfile.ZIP_BZIP2), "compressed by method 12, not stored or deflated"),
-], ids=["nan", "negative-error", "negative-rays", "rule-code", "hit-vertex", "hit-triangle", "barycentric", "replicate",
+], ids=["nan", "negative-error", "negative-rays", "rule-code", "curve-seconds-fall", "curve-rays-not-the-chunks", "curve-rows", "hit-vertex", "hit-triangle", "barycentric", "replicate",
         "shape", "dtype", "a-billion-shards", "shards-text", "format", "order-float", "samples", "bomb",
         "truncated", "empty", "bzip2"])
 def test_each_hostile_part_is_refused_in_one_line_naming_it_and_the_problem(tmp_path, data, words):

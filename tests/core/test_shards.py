@@ -9,7 +9,7 @@ import time
 import numpy as np
 import pytest
 
-from prt_addon.core import bake, executors, job, part_file, rules, shards
+from prt_addon.core import bake, error_curve, executors, job, part_file, rules, shards
 from prt_addon.core.bake import BakeSettings, ChunkResult
 from prt_addon.core.errors import InputError
 from prt_addon.core.progress import Progress
@@ -50,10 +50,11 @@ def test_shard_of_reads_k_of_n_from_1_to_n():
 
 def test_a_part_is_written_atomically_into_a_new_folder_with_the_umasks_mode_and_reads_back(tmp_path):
     result = ChunkResult(np.arange(18.0).reshape(2, 9), np.ones(2), np.array([4, 5]), np.array([False, True]),
-                         np.array([0, rules.LYING], np.uint8))
+                         np.array([0, rules.LYING], np.uint8), np.array([[0.25, 9.0, 2.0]]))
     path = tmp_path / "new" / "folder" / "part.npz"
     started = shards.Stopwatch(time.perf_counter() - 10.0, shards.cpu_seconds() - 2.0)  # a command 10 s ago
-    probe = ChunkResult(np.full((1, 9), 7.0), np.zeros(1), np.array([9]), np.array([False]), rules.measured(1))
+    probe = ChunkResult(np.full((1, 9), 7.0), np.zeros(1), np.array([9]), np.array([False]), rules.measured(1),
+                        np.array([[0.5, 9.0, 0.0]]))
     written = info(2, rays_s=1.5, workers=2)
     umask = os.umask(0o027)
     try:
@@ -142,7 +143,8 @@ def test_a_merges_rays_per_second_and_workers_are_its_shards():
     now = [100.0]
     merge.progress = Progress("PRT bake", clock=lambda: now[0])  # the merge's own seconds, told by this clock
     parts += [(index, ChunkResult(np.zeros((len(rows), 4)), np.zeros(len(rows)), np.full(len(rows), 64),
-                                  np.zeros(len(rows), bool), rules.measured(len(rows))))
+                                  np.zeros(len(rows), bool), rules.measured(len(rows)),
+                                  np.array([[1.0, 64.0 * len(rows), 0.0]])))
               for index, (_, rows) in enumerate(merge.chunks)]
     merge.run()
     now[0] = 103.0
@@ -150,3 +152,5 @@ def test_a_merges_rays_per_second_and_workers_are_its_shards():
     assert summary.rays == 300 * 64 and summary.workers == 6
     assert summary.rays_per_s == 300 * 64 / (12.0 + 3.0) and summary.time_s == 30.0 + 3.0
     assert summary.phases_s["shards_rays_s"] == 12.0
+    # one round, cast in the shards' 12 s of rays and the merge's own 0 s before its clock moved
+    assert summary.error_curve == [error_curve.Row("round 1", 12.0, 300 * 64, 0.0, 300)]
