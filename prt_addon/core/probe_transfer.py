@@ -21,10 +21,12 @@ marked `inside`, and the interpolation leaves them out, so light does not leak t
 """
 
 from dataclasses import dataclass
+import time
 
 import numpy as np
 
 from . import sampling, sh
+from .progress import Job, Progress
 
 # More than this share of its rays meeting back faces puts a probe inside geometry. Inside a closed mesh every ray
 # does (1.0); a probe in the open above a floor sees none; just below a one-sided plane, half.
@@ -54,25 +56,39 @@ def sphere_directions(count: int, shifts: np.ndarray) -> np.ndarray:
     return np.stack([radius * np.cos(azimuth), radius * np.sin(azimuth), z], axis=-1)
 
 
-def probe_transfer(caster, positions, order: int, samples: int, replicates: int = 4, seed: int = 0,
-                   exitant=None) -> ProbeTransfer:
+class ProbeJob(Job):
     """The transfer at each of `positions` (P, 3) in world space, through `caster` (core.ray_caster.RayCaster) with
-    `samples` rays per probe (rounded down to a multiple of `replicates`). `exitant` (S, C, n²): the exitant transfer
-    of the caster's first S vertices (the bake's solved ones), or None for the direct part alone."""
-    positions = np.asarray(positions, dtype=np.float64).reshape(-1, 3)
-    per_replicate = max(1, samples // replicates)
-    channels = 1 if exitant is None else exitant.shape[1]
-    size = order * order
-    matrices = np.zeros((len(positions), channels, size, size))
-    std_error, back_share = np.zeros(len(positions)), np.zeros(len(positions))
-    normals = _face_normals(caster.vertices, caster.triangles)
-    for first in range(0, len(positions), PROBES_AT_ONCE):
-        rows = slice(first, first + PROBES_AT_ONCE)
-        matrices[rows], std_error[rows], back_share[rows] = _chunk(
-            caster, normals, positions[rows], np.arange(len(positions))[rows], order, per_replicate, replicates,
-            seed, exitant)
-    return ProbeTransfer(matrices, std_error, back_share, back_share > INSIDE_SHARE,
-                         per_replicate * replicates)
+    `samples` rays per probe (rounded down to a multiple of `replicates`), PROBES_AT_ONCE probes a step. `exitant`
+    (S, C, n²): the exitant transfer of the caster's first S vertices (the bake's solved ones), or None for the
+    direct part alone. Its outcome is a ProbeTransfer."""
+
+    def __init__(self, caster, positions, order: int, samples: int, replicates: int = 4, seed: int = 0,
+                 exitant=None):
+        self.caster, self.order, self.replicates, self.seed, self.exitant = caster, order, replicates, seed, exitant
+        self.positions = np.asarray(positions, dtype=np.float64).reshape(-1, 3)
+        self.per_replicate = max(1, samples // replicates)
+        self.rays = self.per_replicate * replicates
+        channels = 1 if exitant is None else exitant.shape[1]
+        size = order * order
+        self.matrices = np.zeros((len(self.positions), channels, size, size))
+        self.std_error, self.back_share = np.zeros(len(self.positions)), np.zeros(len(self.positions))
+        self.normals = _face_normals(caster.vertices, caster.triangles)
+        self.done = 0
+        self.progress = Progress("PRT probes")
+
+    def step(self, budget_s: float) -> bool:
+        deadline = time.perf_counter() + budget_s
+        while self.done < len(self.positions) and time.perf_counter() < deadline:
+            rows = slice(self.done, self.done + PROBES_AT_ONCE)
+            self.matrices[rows], self.std_error[rows], self.back_share[rows] = _chunk(
+                self.caster, self.normals, self.positions[rows], np.arange(len(self.positions))[rows], self.order,
+                self.per_replicate, self.replicates, self.seed, self.exitant)
+            self.done = min(len(self.positions), self.done + PROBES_AT_ONCE)
+        self.progress.fraction = self.done / max(1, len(self.positions))
+        return self.done == len(self.positions)
+
+    def outcome(self) -> ProbeTransfer:
+        return ProbeTransfer(self.matrices, self.std_error, self.back_share, self.back_share > INSIDE_SHARE, self.rays)
 
 
 def _chunk(caster, normals, positions, keys, order, per_replicate, replicates, seed, exitant):

@@ -21,6 +21,10 @@ def caster(vertices, triangles):
     return bake.Occluders(vertices, triangles, vertices.copy(), engine="reference").ray_caster()
 
 
+def bake_probes(*arguments, **options):
+    return probe_transfer.ProbeJob(*arguments, **options).run()
+
+
 def floor_caster():
     """Two triangles of the plane z = 0 facing up (+Z)."""
     s = FLOOR
@@ -60,7 +64,7 @@ def within_noise(matrices, expected, std_error):
 
 
 def test_a_probe_with_nothing_around_has_the_identity():
-    found = probe_transfer.probe_transfer(caster(np.zeros((0, 3)), np.zeros((0, 3))), [[0, 0, 0], [4.0, -2, 7]],
+    found = bake_probes(caster(np.zeros((0, 3)), np.zeros((0, 3))), [[0, 0, 0], [4.0, -2, 7]],
                                           ORDER, 1024)
     within_noise(found.matrices[:, 0], np.eye(SIZE), found.std_error)
     assert not found.inside.any()
@@ -70,7 +74,7 @@ def test_a_probe_above_an_infinite_floor_has_the_upper_hemisphere_products():
     directions, weights = hemisphere_integrals(upper=True)
     y = reference_sh(ORDER, directions)
     upper = np.einsum("k,ki,kj->ij", weights, y, y)
-    found = probe_transfer.probe_transfer(floor_caster(), [[0, 0, HEIGHT], [3.0, -5.0, HEIGHT]], ORDER, 2048)
+    found = bake_probes(floor_caster(), [[0, 0, HEIGHT], [3.0, -5.0, HEIGHT]], ORDER, 2048)
     within_noise(found.matrices[:, 0], upper, found.std_error)
     assert np.allclose(found.back_share, 0.0) and not found.inside.any()
 
@@ -85,7 +89,7 @@ def test_a_floor_that_reflects_adds_its_exitant_transfer_over_the_lower_hemisphe
     upper = np.einsum("k,ki,kj->ij", upper_weights, y, y)
     lower = lower_weights @ reference_sh(ORDER, lower_directions)  # ∫₋ y_i
     expected = upper[None] + np.einsum("i,cj->cij", lower, exitant[0])
-    found = probe_transfer.probe_transfer(floor_caster(), [[0, 0, HEIGHT], [1.0, 2.0, 0.5]], ORDER, 2048,
+    found = bake_probes(floor_caster(), [[0, 0, HEIGHT], [1.0, 2.0, 0.5]], ORDER, 2048,
                                           exitant=exitant)
     assert found.matrices.shape == (2, 3, SIZE, SIZE)
     within_noise(found.matrices, expected, found.std_error)
@@ -93,7 +97,7 @@ def test_a_floor_that_reflects_adds_its_exitant_transfer_over_the_lower_hemisphe
 
 def test_a_probe_below_a_floor_gets_no_reflection_from_its_back():
     exitant = np.ones((4, 1, SIZE))
-    found = probe_transfer.probe_transfer(floor_caster(), [[0, 0, -HEIGHT]], ORDER, 1024, exitant=exitant)
+    found = bake_probes(floor_caster(), [[0, 0, -HEIGHT]], ORDER, 1024, exitant=exitant)
     directions, weights = hemisphere_integrals(upper=False)
     y = reference_sh(ORDER, directions)
     within_noise(found.matrices[:, 0], np.einsum("k,ki,kj->ij", weights, y, y), found.std_error)
@@ -104,7 +108,7 @@ def test_probes_inside_a_closed_box_are_found_and_those_outside_or_above_a_floor
     floor = np.array([[-9, -9, 0], [9, -9, 0], [9, 9, 0], [-9, 9, 0]])
     scene = caster(np.vstack([corners, floor]), triangles + [[8, 9, 10], [8, 10, 11]])
     points = [[0, 0, 1], [0.9, -0.9, 0.1], [1.5, 0, 1], [0, 0, 2.5], [3, 3, 0.5], [5, 0, -0.5]]
-    found = probe_transfer.probe_transfer(scene, points, ORDER, 256)
+    found = bake_probes(scene, points, ORDER, 256)
     np.testing.assert_array_equal(found.inside, [True, True, False, False, False, True])
     assert np.allclose(found.back_share[:2], 1.0)
     assert 0.3 < found.back_share[5] < 0.7  # below a one-sided floor, its back fills the upper half
