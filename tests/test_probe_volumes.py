@@ -1,11 +1,13 @@
 """A probe volume carries the static scene's shadows to a dynamic object: a floor, a box wall, a probe volume added by
 its operator and a dynamic sphere, baked; the sphere is shaded from its self-transfer and the light arriving at its
-centre through the probes.
+centre through the probes. Interreflected, the probes also hold the light a coloured floor reflects.
 
 Truth, independent of the bake: the direct-light model in closed form. A probe's transfer is
 T_ij = ∫ y_i V y_j dω with V from exact ray tests against the floor square and the wall's box, integrated by
 Gauss-Legendre quadrature in z × uniform φ (scipy's SH); a convex sphere's self-transfer is the clamped cosine, so
-under a point sun L it shows at world normal n: Σ_lm (Â_l/π) Y_lm(n) (T L)_lm, whatever its turn.
+under a point sun L it shows at world normal n: Σ_lm (Â_l/π) Y_lm(n) (T L)_lm, whatever its turn. A floor that
+nothing shadows has the clamped cosine lobe for transfer, so with albedo ρ it sends back E = ρ (Â_l/π) Y_lm(+Z)
+everywhere: a probe's matrix gains ∫ y_i [ray meets the floor] dω · E_j.
 """
 
 import math
@@ -17,6 +19,7 @@ import pytest
 from conftest import add_light
 from quadrature import reference_sh
 from prt_addon.blender import probe_volumes
+from prt_addon.blender.compat import new_node_material
 from prt_addon.blender.scene_bake import SceneBake
 from prt_addon.core import bake
 from prt_addon.core.shading import direction_from_angles, sun_coefficients
@@ -69,15 +72,20 @@ def blocked(origin, directions) -> np.ndarray:
     return floor | ((enter <= leave) & (leave > 0))
 
 
-def closed_form_transfer(origin, nodes=400) -> np.ndarray:
-    """T_ij = ∫ y_i V y_j dω by quadrature; V jumps at the edges, so the quadrature is fine rather than exact."""
+def sphere_quadrature(nodes=400):
+    """Gauss-Legendre in z × uniform φ; V jumps at the edges, so integrals of it are fine rather than exact."""
     z, w = np.polynomial.legendre.leggauss(nodes)
     phi = 2 * np.pi * (np.arange(2 * nodes) + 0.5) / (2 * nodes)
     r = np.sqrt(1 - z * z)[:, None]
     directions = np.stack(np.broadcast_arrays(r * np.cos(phi), r * np.sin(phi), z[:, None]), -1).reshape(-1, 3)
-    weights = np.repeat(w, 2 * nodes) * (np.pi / nodes) * ~blocked(np.asarray(origin, dtype=float), directions)
+    return directions, np.repeat(w, 2 * nodes) * (np.pi / nodes)
+
+
+def closed_form_transfer(origin, hits=blocked) -> np.ndarray:
+    """T_ij = ∫ y_i V y_j dω, V from the ray tests `hits`."""
+    directions, weights = sphere_quadrature()
     y = reference_sh(ORDER, directions)
-    return np.einsum("k,ki,kj->ij", weights, y, y)
+    return np.einsum("k,ki,kj->ij", weights * ~hits(np.asarray(origin, dtype=float), directions), y, y)
 
 
 def sun_light() -> np.ndarray:
@@ -146,3 +154,43 @@ def test_beside_the_wall_the_sphere_is_lit_by_its_own_side_only(wall_scene):
     update()
     open_sky = convex_shading(world_normals(sphere), sun_light())
     np.testing.assert_allclose(colours(sphere.data), open_sky, rtol=0, atol=2e-6)
+
+
+def floor_only(origin, directions):
+    """Exact ray tests against the floor square alone."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        hit = origin[:2] - (origin[2] / directions[:, 2])[:, None] * directions[:, :2]
+    return (directions[:, 2] < 0) & np.all(np.abs(hit) <= FLOOR, axis=1)
+
+
+def test_interreflected_probes_hold_the_light_a_coloured_floor_reflects(empty_scene):
+    bpy.ops.mesh.primitive_plane_add(size=2 * FLOOR)
+    floor = bpy.context.object
+    material = new_node_material("Floor")
+    principled = material.node_tree.nodes.new("ShaderNodeBsdfPrincipled")
+    output = material.node_tree.nodes.new("ShaderNodeOutputMaterial")
+    material.node_tree.links.new(principled.outputs["BSDF"], output.inputs["Surface"])
+    albedo = np.array([0.8, 0.4, 0.2])
+    principled.inputs["Base Color"].default_value = (*albedo, 1.0)
+    floor.data.materials.append(material)
+    bpy.ops.prt.add_probe_volume()
+    volume = bpy.context.object
+    volume.location, volume.scale, volume.prt_probe_resolution = (1.0, -2.0, 1.0), (1.0, 1.0, 0.5), (1, 1, 2)
+    bpy.ops.object.select_all(action="DESELECT")
+    SceneBake(bpy.context, bake.BakeSettings(order=ORDER, mode="interreflected", samples=SAMPLES)).run(
+        log=lambda line: None)
+    stored = probe_volumes.read(volume)
+    assert stored.matrices.shape == (2, 3, ORDER * ORDER, ORDER * ORDER) and stored.valid.all()
+    sigma = volume[probe_volumes.METADATA_KEY]["est_max_error"]
+    lobe = np.repeat(np.array(A_HAT) / math.pi, 2 * np.arange(ORDER) + 1) * reference_sh(ORDER, [[0.0, 0.0, 1.0]])[0]
+    directions, weights = sphere_quadrature()
+    for probe, height in enumerate((0.75, 1.25)):
+        origin = np.array([1.0, -2.0, height])
+        seen = (weights * floor_only(origin, directions)) @ reference_sh(ORDER, directions)  # ∫ y_i [floor]
+        expected = closed_form_transfer(origin, floor_only)[None] + np.einsum("i,c,j->cij", seen, albedo, lobe)
+        difference = np.linalg.norm(stored.matrices[probe] - expected)
+        reflected = np.linalg.norm(np.einsum("i,c,j->cij", seen, albedo, lobe))
+        print(f"probe at z = {height}: ‖T − closed form‖ {difference:.4f}, 3σ {3 * sigma:.4f}, "
+              f"reflected part ‖·‖ {reflected:.4f}")
+        assert difference <= 3 * sigma + 2e-3
+        assert reflected > 10 * (3 * sigma + 2e-3)  # the reflection is far beyond the noise: it is there
