@@ -144,8 +144,9 @@ def test_a_dynamic_sphere_in_the_walls_shadow_gets_the_closed_form_light_through
     assert means["shadow"][1] < 0.6 * means["open"][1]
 
 
-def test_beside_the_wall_the_sphere_is_lit_by_its_own_side_only(wall_scene):
-    """Its cell's probes in the wall are left out: it takes the probe at x = −1.6 alone, not the open side's."""
+def test_beside_the_wall_the_sphere_is_lit_by_its_own_side_only(wall_scene, tmp_path):
+    """Its cell's probes in the wall are left out: it takes the probe at x = −1.6 alone, not the open side's. The
+    probes are saved with the file."""
     sphere, volume = wall_scene
     SceneBake(bpy.context, bake.BakeSettings(order=ORDER, mode="shadowed", samples=256)).run(log=lambda line: None)
     in_shadow = shown_at(sphere, SHADOW)
@@ -154,6 +155,13 @@ def test_beside_the_wall_the_sphere_is_lit_by_its_own_side_only(wall_scene):
     update()
     open_sky = convex_shading(world_normals(sphere), sun_light())
     np.testing.assert_allclose(colours(sphere.data), open_sky, rtol=0, atol=2e-6)
+    baked = probe_volumes.read(volume)
+    path = str(tmp_path / "probes.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=path)
+    bpy.ops.wm.open_mainfile(filepath=path)
+    reread = probe_volumes.read(bpy.data.objects["PRT Probe Volume"])
+    assert np.array_equal(reread.matrices, baked.matrices) and np.array_equal(reread.valid, baked.valid)
+    assert reread.resolution == (5, 1, 2) and reread.order == ORDER
 
 
 def floor_only(origin, directions):

@@ -37,8 +37,8 @@ PROBES_AT_ONCE = 32  # probes whose rays, SH values and hit transfers are held a
 @dataclass
 class ProbeTransfer:
     """Each probe's transfer matrix (P, C, n², n²) (C = 1, or 3 where the exitant transfer is coloured), the
-    Frobenius norm of its standard error (P,), the share of its rays that met a back face (P,) and whether that puts
-    it inside geometry (P,)."""
+    Frobenius norm of its standard error (P,) (its own rays' noise: the exitant transfer's own error is not in it),
+    the share of its rays that met a back face (P,) and whether that puts it inside geometry (P,)."""
     matrices: np.ndarray
     std_error: np.ndarray
     back_share: np.ndarray
