@@ -16,7 +16,7 @@ import bpy
 import numpy as np
 import pytest
 
-from conftest import add_light
+from conftest import add_light, labels_drawn
 from quadrature import reference_sh
 from prt_addon.blender import probe_volumes
 from prt_addon.blender.compat import new_node_material
@@ -125,6 +125,10 @@ def test_a_dynamic_sphere_in_the_walls_shadow_gets_the_closed_form_light_through
     assert any("probe volume 'PRT Probe Volume': 10 probes, 2 inside geometry" in note for note in job.notes)
     stored = probe_volumes.read(volume)
     np.testing.assert_array_equal(stored.valid.reshape(5, 2), [[1, 1], [1, 1], [0, 0], [1, 1], [1, 1]])
+    bpy.context.view_layer.objects.active = volume
+    drawn = []
+    assert "2 probes inside geometry, left out" in labels_drawn(bpy.types.PRT_PT_probe_volume, drawn)
+    assert drawn == ["prt_probe_resolution"]
     light = sun_light()
     sigma = volume[probe_volumes.METADATA_KEY]["est_max_error"]
     # The shading at any normal moves by at most ‖ΔT‖_F ‖L‖ ‖(Â/π)·y(n)‖ for an error ΔT of the probe's matrix.
