@@ -19,9 +19,14 @@ import pytest
 from conftest import add_light, labels_drawn
 from quadrature import reference_sh
 from prt_addon.blender import probe_volumes
+from prt_addon.blender.checks import scene_checks
+from prt_addon.blender.plan import plan_bake
+from prt_addon.blender.request import read_request
 from prt_addon.blender.compat import new_node_material
 from prt_addon.blender.scene_bake import SceneBake
 from prt_addon.core import bake
+from prt_addon.core.checks import ERROR
+from prt_addon.core.executors import InProcess
 from prt_addon.core.shading import direction_from_angles, sun_coefficients
 
 ORDER = 4
@@ -206,3 +211,19 @@ def test_interreflected_probes_hold_the_light_a_coloured_floor_reflects(empty_sc
               f"reflected part ‖·‖ {reflected:.4f}")
         assert difference <= 3 * sigma + 2e-3
         assert reflected > 10 * (3 * sigma + 2e-3)  # the reflection is far beyond the noise: it is there
+
+
+def test_the_checks_count_the_probes_rays_and_refuse_probes_memory_cannot_hold(empty_scene):
+    bpy.ops.mesh.primitive_plane_add(size=2 * FLOOR)
+    bpy.ops.prt.add_probe_volume()
+    volume = bpy.context.object
+    volume.prt_probe_resolution = (2, 2, 2)
+    bpy.ops.object.select_all(action="DESELECT")
+
+    def checks(order):
+        plan = plan_bake(read_request(bpy.context, bake.BakeSettings(order=order, samples=64)))
+        return {check.subject: check for check in scene_checks(bpy.context, plan, InProcess())}
+    assert "(768 rays at a typical" in checks(ORDER)["time"].text  # (4 vertices + 8 probes) × 64
+    volume.prt_probe_resolution = (64, 64, 64)
+    memory = checks(16)["memory"]  # 262,144 probes × 16⁴ values × 12 bytes: about 190 GB
+    assert memory.level == ERROR and "fewer objects or probes" in memory.text, memory.text
