@@ -227,3 +227,19 @@ def test_the_checks_count_the_probes_rays_and_refuse_probes_memory_cannot_hold(e
     volume.prt_probe_resolution = (64, 64, 64)
     memory = checks(16)["memory"]  # 262,144 probes × 16⁴ values × 12 bytes: about 190 GB
     assert memory.level == ERROR and "fewer objects or probes" in memory.text, memory.text
+
+
+def test_an_unshadowed_or_farm_bake_leaves_the_probes_as_they_were(empty_scene):
+    bpy.ops.mesh.primitive_plane_add(size=2 * FLOOR)
+    bpy.ops.prt.add_probe_volume()
+    volume = bpy.context.object
+    bpy.ops.object.select_all(action="DESELECT")
+    unshadowed = SceneBake(bpy.context, bake.BakeSettings(order=ORDER, mode="unshadowed"))
+    unshadowed.run(log=lambda line: None)
+    assert any("an unshadowed bake leaves them as they were" in note for note in unshadowed.notes)
+    assert probe_volumes.METADATA_KEY not in volume
+    farm = read_request(bpy.context, bake.BakeSettings(order=ORDER, samples=16), farm=True)
+    assert farm.probe_volumes == [] and any("a farm bake leaves them as they were" in note for note in farm.notes)
+    volume.scale = (1.0, 0.0, 1.0)
+    flat = read_request(bpy.context, bake.BakeSettings(order=ORDER, samples=16))
+    assert flat.probe_volumes == [] and any("flat on an axis" in problem for problem in flat.problems)
