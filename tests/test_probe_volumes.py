@@ -44,14 +44,14 @@ def update():
 
 @pytest.fixture
 def wall_scene(empty_scene):
-    """The floor, the wall, a probe volume over them with probes at x = −3.2, −1.6, 0 (in the wall), 1.6, 3.2 and
-    z = 0.7, 1.7, a dynamic sphere and the sun."""
+    """The floor, the wall, a probe volume over them (a cube of display size 2 scaled to 8 × 2 × 2) with probes at
+    x = −3.2, −1.6, 0 (in the wall), 1.6, 3.2 and z = 0.7, 1.7, a dynamic sphere and the sun."""
     bpy.ops.mesh.primitive_plane_add(size=2 * FLOOR)
     low, high = np.array(WALL[0]), np.array(WALL[1])
     bpy.ops.mesh.primitive_cube_add(size=1.0, location=tuple((low + high) / 2), scale=tuple(high - low))
     bpy.ops.prt.add_probe_volume()
     volume = bpy.context.object
-    volume.location, volume.scale = (0.0, 0.0, 1.2), (4.0, 1.0, 1.0)
+    volume.location, volume.scale, volume.empty_display_size = (0.0, 0.0, 1.2), (2.0, 0.5, 0.5), 2.0
     volume.prt_probe_resolution = (5, 1, 2)
     bpy.ops.mesh.primitive_uv_sphere_add(segments=24, ring_count=12, radius=0.3, location=SHADOW)
     sphere = bpy.context.object
@@ -155,11 +155,14 @@ def test_a_dynamic_sphere_in_the_walls_shadow_gets_the_closed_form_light_through
 
 def test_beside_the_wall_the_sphere_is_lit_by_its_own_side_only(wall_scene, tmp_path):
     """Its cell's probes in the wall are left out: it takes the probe at x = −1.6 alone, not the open side's. The
-    probes are saved with the file."""
+    probes stay where they were baked when the volume moves, and are saved with the file."""
     sphere, volume = wall_scene
     SceneBake(bpy.context, bake.BakeSettings(order=ORDER, mode="shadowed", samples=256)).run(log=lambda line: None)
     in_shadow = shown_at(sphere, SHADOW)
     np.testing.assert_allclose(shown_at(sphere, BESIDE_WALL), in_shadow, rtol=0, atol=1e-6)
+    volume.location.x += 0.8  # the probes stay where they were baked
+    assert not np.allclose(shown_at(sphere, OPEN), in_shadow, rtol=0, atol=1e-3)  # shaded again on the way back
+    np.testing.assert_allclose(shown_at(sphere, SHADOW), in_shadow, rtol=0, atol=1e-6)
     sphere.location = (-10.0, 0.0, 0.7)  # outside every volume: the distant light, unshadowed
     update()
     open_sky = convex_shading(world_normals(sphere), sun_light())

@@ -1,15 +1,16 @@
-"""PRT probe volumes in Blender: an Empty shown as a cube, marked `prt_probe_volume`, that the user scales over the
-scene, with its probes per axis in `prt_probe_resolution` (blender.schema; the grid is core.probe_grid's). A bake of
-the static scene bakes every visible one (blender.request, blender.execute) and stores each probe's transfer matrix
-on its Empty (blender.store); the display lights each dynamic object from the volume around its centre
-(blender.relighting).
+"""PRT probe volumes in Blender: an Empty shown as a cube (its display size the half side), marked `prt_probe_volume`,
+that the user scales over the scene, with its probes per axis in `prt_probe_resolution` (blender.schema; the grid is
+core.probe_grid's). A bake of the static scene bakes every visible one (blender.request, blender.execute) and stores
+each probe's transfer matrix on its Empty (blender.store); the display lights each dynamic object from the volume
+around its centre (blender.relighting).
 
 Stored on the Empty, as custom properties saved in the .blend with it:
 - `_prt_probe_transfer`: float32 array, the matrices (P, C, n², n²) in C order, probes numbered as core.probe_grid;
 - `_prt_probe_valid`: int array (P,), 0 for a probe inside static geometry (left out of the interpolation);
-- `prt_probes` (a group): layout (PROBE_LAYOUT), order, channels, resolution, matrix_world (the placement the probes
-  were baked at, 16 floats by rows: moving the Empty afterwards does not move them), mode, samples, rays, seed,
-  inside_probes, est_max_error (the largest probe's standard error, Frobenius norm), date, bake_id.
+- `prt_probes` (a group): layout (PROBE_LAYOUT), order, channels, resolution, placement (where the probes were
+  baked: the matrix taking core.probe_grid's cube [−1, 1]³ to world space, the display size included, 16 floats by
+  rows; moving the Empty afterwards does not move them), mode, samples, rays, seed, inside_probes, est_max_error
+  (the largest probe's standard error, Frobenius norm), date, bake_id.
 An Empty has no mesh whose attributes could hold them; ID property arrays are saved, duplicated and deleted with the
 object, and read back through the buffer protocol at once (a million floats in milliseconds).
 """
@@ -34,7 +35,8 @@ PROBE_LAYOUT = 1  # bump when the stored layout or its conventions change
 
 @dataclass
 class VolumeInput:
-    """A probe volume to bake: its name, placement (4, 4) and probes per axis."""
+    """A probe volume to bake: its name, placement (4, 4: core.probe_grid's cube to world space) and probes per
+    axis."""
     name: str
     matrix: np.ndarray
     resolution: tuple
@@ -66,7 +68,8 @@ def volumes_to_bake(context, problems: list) -> list[VolumeInput]:
     for ob in context.view_layer.objects:
         if not (is_probe_volume(ob) and ob.visible_get()):
             continue
-        matrix = np.array(ob.matrix_world, dtype=np.float64)
+        # The cube drawn: [−size, size]³ in the Empty's frame, which core.probe_grid takes as [−1, 1]³.
+        matrix = np.array(ob.matrix_world, dtype=np.float64) @ np.diag([ob.empty_display_size] * 3 + [1.0])
         if abs(np.linalg.det(matrix[:3, :3])) < 1e-12:
             problems.append(f"{ob.name!r}: a probe volume flat on an axis (zero scale) holds no probes; scale it")
             continue
@@ -88,7 +91,7 @@ def write(volumes: list[VolumeInput], probes, settings) -> list[str]:
         inside = int(probes.inside[rows].sum())
         ob[METADATA_KEY] = {
             "layout": PROBE_LAYOUT, "order": settings.order, "channels": matrices.shape[1],
-            "resolution": list(volume.resolution), "matrix_world": volume.matrix.ravel().tolist(),
+            "resolution": list(volume.resolution), "placement": volume.matrix.ravel().tolist(),
             "mode": settings.mode, "samples": settings.samples, "rays": probes.rays, "seed": settings.seed,
             "inside_probes": inside, "est_max_error": float(probes.std_error[rows].max(initial=0.0)),
             "date": datetime.now(timezone.utc).isoformat(timespec="seconds"), "bake_id": uuid.uuid4().hex,
@@ -117,7 +120,7 @@ def read(ob) -> StoredProbes:
     count = int(np.prod(resolution))
     if matrices.size != count * channels * size * size:
         raise StaleBake(f"probe volume {ob.name!r} holds {matrices.size} values, not its {count} probes'; rebake it")
-    placement = np.array(meta["matrix_world"], dtype=np.float64).reshape(4, 4)
+    placement = np.array(meta["placement"], dtype=np.float64).reshape(4, 4)
     return StoredProbes(matrices.reshape(count, channels, size, size).astype(np.float64),
                         np.frombuffer(ob[VALID_KEY], dtype=np.int32) != 0, np.linalg.inv(placement),
                         resolution, order)
