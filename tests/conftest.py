@@ -9,6 +9,7 @@ import tempfile
 import time
 import tomllib
 from pathlib import Path
+from types import SimpleNamespace
 
 import pytest
 
@@ -159,6 +160,19 @@ class FakeLayout:
 
     def progress(self, **kwargs):
         pass
+
+
+def labels_drawn(panel, drawn: list) -> list[str]:
+    """The texts of the labels `panel` draws now, the properties it draws added to `drawn`."""
+    import bpy
+    labels = []
+
+    class Layout(FakeLayout):
+        def label(self, text="", **kwargs):
+            labels.append(text)
+
+    panel.draw(SimpleNamespace(layout=Layout(drawn)), bpy.context)
+    return labels
 
 
 def add_light(kind="SUN", **settings):

@@ -3,13 +3,12 @@ or of the last validation's difference from Cycles, per vertex or per face corne
 legend says the range. The handler belongs to the installed add-on, so its modules are used (`prt`)."""
 
 import importlib
-from types import SimpleNamespace
 
 import bpy
 import numpy as np
 import pytest
 
-from conftest import FakeLayout
+from conftest import labels_drawn
 from prt_addon.blender import sample_scenes, storage
 from prt_addon.blender.scene_bake import SceneBake
 from prt_addon.core import bake, heatmap, rules
@@ -184,18 +183,6 @@ def test_decided_by_rule_shows_each_points_rule_in_its_colour_and_the_panels_cou
     assert "Lying on a surface (black): 5 points" in labels_drawn(bpy.types.PRT_PT_display, [])
     bpy.context.view_layer.objects.active = cube
     assert "  4 lying on a surface (black)" in labels_drawn(bpy.types.PRT_PT_bake_info, [])
-
-
-def labels_drawn(panel, drawn: list) -> list[str]:
-    """The texts of the labels `panel` draws now, the properties it draws added to `drawn`."""
-    labels = []
-
-    class Layout(FakeLayout):
-        def label(self, text="", **kwargs):
-            labels.append(text)
-
-    panel.draw(SimpleNamespace(layout=Layout(drawn)), bpy.context)
-    return labels
 
 
 def stored_codes(mesh) -> np.ndarray:

@@ -71,6 +71,8 @@ def bake_size(plan, job, spawned: bool) -> checks.BakeSize:
     split = [len(layout.corner_points) for layout in layouts if layout.corner_points is not None]
     occluders, settings = job.occluders, plan.settings
     casts = occluders is not None and settings.mode != "unshadowed" and len(occluders.triangles) > 0
+    channels = job.albedo[0].shape[1] if job.albedo else 1
+    probes = sum(len(volume.positions) for volume in plan.request.probe_volumes)
     return checks.BakeSize(
         points=job.total_vertices,
         stored_rows=sum(layout.stored_rows() for layout in layouts),
@@ -78,10 +80,11 @@ def bake_size(plan, job, spawned: bool) -> checks.BakeSize:
         occluder_vertices=len(occluders.vertices) if occluders else 0,
         occluder_triangles=len(occluders.triangles) if occluders else 0,
         order=plan.settings.order,
-        channels=job.albedo[0].shape[1] if job.albedo else 1,
-        rays=job.total_vertices * settings.samples if casts else 0,
+        channels=channels,
+        rays=(job.total_vertices + probes) * settings.samples if casts else 0,
         hits_per_ray=checks.HITS_PER_RAY if casts and settings.mode == "interreflected" else 0.0,
-        processes=job.processes(), spawned=spawned, ray_engine=occluders.engine if occluders else "bvhtree")
+        processes=job.processes(), spawned=spawned, ray_engine=occluders.engine if occluders else "bvhtree",
+        probe_values=probes * channels * settings.order ** 4)
 
 
 def object_checks(ob, receiver: bool, casts_rays: bool) -> list[Check]:

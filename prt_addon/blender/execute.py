@@ -4,7 +4,8 @@ time left, cancel) whose every step casts its rays through the executor (core.ex
 1. Auto's probes, where texel or Auto receivers wait for them; then each such receiver's layout is chosen;
 2. the bake itself: every receiver and bouncer, texel receivers lattice by lattice (core.texel_refine), and in
    interreflected bakes the bounces (core.interreflect) and the texels' gather (core.texel_gather);
-3. the probes between vertices of the receivers stored per point (core.interpolation).
+3. the probes between vertices of the receivers stored per point (core.interpolation);
+4. the probe volumes' probes (core.probe_transfer), whose bounced light is the solved surfaces' exitant transfer.
 
 Its outcome, BakeResults, is what storing writes: nothing is written here, so a cancelled or failed bake leaves
 the previous data as it was.
@@ -16,7 +17,7 @@ import sys
 import bpy
 import numpy as np
 
-from ..core import error_curve, executors, interpolation, job, lobes, texel_gather, texel_refine
+from ..core import error_curve, executors, interpolation, job, lobes, probe_transfer, texel_gather, texel_refine
 from ..core.statistics import rms
 from ..core.errors import InputError
 from ..core.progress import JobSequence, WrappingJob
@@ -38,6 +39,7 @@ class BakeResults:
     lattices: str            # what the texel lattices baked and interpolated ("" without texels)
     problems: list
     parts: list = field(default_factory=list)  # each dynamic part's own BakeResults; `summary` then covers all
+    probes: probe_transfer.ProbeTransfer | None = None  # the request's probe volumes' probes, in order
 
 
 def local_executor(workers: int):
@@ -121,6 +123,11 @@ class Execution(WrappingJob):
                       + sum(len(surface.receiver.positions) for surface in plan.request.bouncers))
         stages.append(self.between)
         shares.append(max(1, self.between.total_vertices))
+        self.probes = None
+        volumes = plan.request.probe_volumes
+        if volumes:
+            stages.append(self._probes)
+            shares.append(sum(len(volume.positions) for volume in volumes))
         self.parts = [Execution(part, executor) for part in plan.parts]  # each dynamic receiver alone, after
         stages += self.parts
         shares += [sum(len(layout.receiver.positions) for layout in part.plan.layouts()) for part in self.parts]
@@ -158,6 +165,20 @@ class Execution(WrappingJob):
         texel_plan.check_memory([layout for layout in self.chosen if layout is not None], settings.order)
         return self._main()
 
+    def _probes(self) -> probe_transfer.ProbeJob:
+        """Once the scene is solved: the job of the probe volumes' probes, their bounces from the solved surfaces'
+        exitant transfer ρ·T (interreflected bakes; their first job solves every surface's vertices)."""
+        settings, exitant = self.plan.settings, None
+        if settings.mode == "interreflected":
+            solve = self.main.first
+            transfer = np.concatenate([result.transfer for result in solve.results()]).astype(np.float64)
+            transfer = transfer[:, None, :] if transfer.ndim == 2 else transfer
+            exitant = np.concatenate(solve.albedo)[:, :, None] * transfer
+        positions = np.concatenate([volume.positions for volume in self.plan.request.probe_volumes])
+        self.probes = probe_transfer.ProbeJob(self.plan.occluders.ray_caster(), positions, settings.order,
+                                              settings.samples, settings.replicates, settings.seed, exitant)
+        return self.probes
+
     def outcome(self) -> BakeResults:
         """The receivers' results and the bake's summary, in mesh vertices, with what storing per vertex loses
         between them; the bake's time includes every probe."""
@@ -176,7 +197,8 @@ class Execution(WrappingJob):
         self._measure_interpolation(summary, [receiver.name for receiver in receivers], results)
         decisions = [self.decisions[receiver.name] for receiver in receivers if self.decisions[receiver.name]]
         own = BakeResults([receiver.name for receiver in receivers], chosen, results, summary, decisions,
-                          self.main.lattice_line() if self.main.states else "", self.problems)
+                          self.main.lattice_line() if self.main.states else "", self.problems,
+                          probes=self.probes.outcome() if self.probes else None)
         if self.parts:
             own.parts = [part.outcome() for part in self.parts]
             own.summary = merged_summary([own] + own.parts, self.sequence.progress.elapsed)
@@ -207,6 +229,8 @@ class Execution(WrappingJob):
         summary.interp_points = self.between.total_vertices + sum(map(len, self.measured.values()))
         summary.interp_rays = self.between.rays + (self.auto.rays if self.auto else 0)
         summary.phases_s["probes_s"] = self.between.progress.elapsed + self.auto_s
+        if self.probes:
+            summary.phases_s["probe_volumes_s"] = self.probes.progress.elapsed
         # A merge's time is the shards' seconds summed plus its own, as its job's summary counts it.
         summary.time_s = self.sequence.progress.elapsed + self.main.first.phase_times.get("shards_s", 0.0)
 

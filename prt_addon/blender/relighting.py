@@ -16,7 +16,7 @@ import numpy as np
 from ..core import lights as core_lights
 from ..core import rotation
 from ..core.errors import StaleBake
-from . import display, heatmaps, layouts, storage
+from . import display, heatmaps, layouts, probe_volumes, storage
 from .lights import environment_image, scene_lights, sync_sun_lamps
 
 
@@ -45,6 +45,7 @@ class Relighter:
         # mesh name → (bake key, layouts.Shading, or None for a stale bake)
         self._transfers = {}
         self._shaded = {}     # mesh name → (bake key, light bytes) or a heatmap's state: the colours it holds
+        self._volumes = {}    # probe volume name → (bake id, blender.probe_volumes.StoredProbes or None if stale)
         self._reported = set()  # messages already printed
         self.legend = None  # heatmaps.Legend of the last heatmap painted, for the panel
         self.auto_window = {}  # order → (strength, negative share left) of the last shading's Auto window
@@ -67,7 +68,7 @@ class Relighter:
                 self._paint_heatmaps(receivers, mode)
             elif settings.prt_lights:
                 sync_sun_lamps(settings, create=False)  # a split-off sun's lamp turns with its environment
-                self._shade(receivers, settings, depsgraph)
+                self._shade(scene, receivers, settings, depsgraph)
             for lost in _sync_display(scene, receivers, settings.prt_display):
                 self._report_once(f"PRT: {lost}")
         finally:
@@ -89,6 +90,9 @@ class Relighter:
             if kind == "OBJECT" and update.is_updated_transform and isinstance(mesh, bpy.types.Mesh) \
                     and is_dynamic(mesh):
                 return True  # a dynamic object moved: its light may turn into its frame
+            if kind == "OBJECT" and probe_volumes.is_probe_volume(datablock) \
+                    and self._volumes.get(datablock.name_full, (None,))[0] != probe_volumes.bake_id(datablock):
+                return True  # a probe volume was baked
         return False
 
     def _bake_changed(self, mesh) -> bool:
@@ -125,7 +129,25 @@ class Relighter:
             self._reported.add(message)
             print(message)
 
-    def _shade(self, receivers, settings, depsgraph):
+    def _probes(self, scene) -> list:
+        """The scene's baked probe volumes (blender.probe_volumes.StoredProbes), each read once per bake; a stale
+        one is reported once and never applied."""
+        found = []
+        for ob in scene.objects:
+            key = probe_volumes.bake_id(ob) if probe_volumes.is_probe_volume(ob) else None
+            if key is None:
+                continue
+            if self._volumes.get(ob.name_full, (None,))[0] != key:
+                try:
+                    self._volumes[ob.name_full] = (key, probe_volumes.read(ob))
+                except StaleBake as problem:
+                    self._volumes[ob.name_full] = (key, None)
+                    self._report_once(f"PRT: not lighting from probes: {problem}")
+            if self._volumes[ob.name_full][1] is not None:
+                found.append(self._volumes[ob.name_full][1])
+        return found
+
+    def _shade(self, scene, receivers, settings, depsgraph):
         """Sums the lights once per SH order, then writes the colours of each mesh whose light or bake changed."""
         orders = {math.isqrt(baked.transfer.shape[-1]) for _, baked in receivers}
         for entry in settings.prt_lights:
@@ -135,21 +157,24 @@ class Relighter:
         totals = self._light_cache.totals(scene_lights(settings), orders, settings.prt_display.window)
         self.auto_window = ({order: (self._light_cache.auto_strengths[order], core_lights.negative_share(totals[order]))
                              for order in orders} if settings.prt_display.window == "auto" else {})
-        self._write_colours(receivers, totals, depsgraph)
+        self._write_colours(scene, receivers, totals, depsgraph)
 
     def shade_all(self, scene, totals: dict):
         """Shades every baked mesh of the scene under the given light ({order: (3, order²)}), whatever its SH
         lights: validation shows the light it gives Cycles."""
-        self._write_colours(list(self._receivers(scene)), totals)
+        self._write_colours(scene, list(self._receivers(scene)), totals)
 
-    def _write_colours(self, receivers, totals, depsgraph=None):
-        """The colours of each mesh whose light or bake changed; a dynamic object's light is turned into its frame
-        (as the depsgraph places it, else as it is now)."""
+    def _write_colours(self, scene, receivers, totals, depsgraph=None):
+        """The colours of each mesh whose light or bake changed; a dynamic object's light is what arrives at its
+        centre through the probe volume that holds it (the distant light outside every volume), turned into its
+        frame (as the depsgraph places it, else as it is now)."""
+        probes = self._probes(scene) if any(is_dynamic(ob.data) for ob, _ in receivers) else []
         for ob, baked in receivers:
             light = totals[math.isqrt(baked.transfer.shape[-1])]
             if is_dynamic(ob.data):
                 placed = ob.evaluated_get(depsgraph) if depsgraph is not None else ob
-                light = light_in_frame(light, placed.matrix_world)
+                arriving = probe_volumes.light_at(probes, bounds_centre(placed), light) if probes else None
+                light = light_in_frame(light if arriving is None else arriving, placed.matrix_world)
             state = (_bake_key(ob.data), light.tobytes())
             if self._shaded.get(ob.data.name_full) == state:
                 continue
@@ -180,6 +205,13 @@ def light_in_frame(light, matrix_world) -> np.ndarray:
     L_object(ω) = L(R·ω), R the matrix's rotation (translation and uniform scale change nothing)."""
     turn = np.array(matrix_world.to_quaternion().to_matrix(), dtype=np.float64)
     return rotation.rotate(light, turn.T)
+
+
+def bounds_centre(ob) -> np.ndarray:
+    """(3,) the centre of the object's bounding box in world space: where a dynamic object takes its probes' light."""
+    corners = np.array([corner[:] for corner in ob.bound_box], dtype=np.float64)
+    matrix = np.array(ob.matrix_world, dtype=np.float64)
+    return matrix[:3, :3] @ corners.mean(axis=0) + matrix[:3, 3]
 
 
 def _bake_key(mesh):

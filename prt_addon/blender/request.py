@@ -10,7 +10,7 @@ import bpy
 from ..core import bake, engines
 from ..core.errors import InputError
 from ..core.progress import old_objects_frozen
-from . import fingerprint, geometry, materials, texel_bake
+from . import fingerprint, geometry, materials, probe_volumes, texel_bake
 from .occluders import occluders_from_depsgraph
 
 
@@ -41,6 +41,7 @@ class BakeRequest:
     ray_engine: str = ""                           # the engine its settings name, with its version, as reported
     dynamic: bool = False                          # its one receiver is dynamic: baked in its own frame, alone
     parts: list = field(default_factory=list)      # BakeRequest of each further dynamic receiver, baked after it
+    probe_volumes: list = field(default_factory=list)  # blender.probe_volumes.VolumeInput: baked with the scene
 
     @property
     def names(self) -> list[str]:
@@ -94,6 +95,7 @@ def read_request(context, settings: bake.BakeSettings, object_names=None, storag
     request.receivers = [receiver for receiver, own in zip(everyone, dynamic) if not own]
     if request.receivers:
         _gather_scene(request, context, depsgraph)
+        _gather_probe_volumes(request, context)
     for ob, receiver in zip(objects, everyone):
         if receiver.options.storage != "vertex":
             receiver.texels = texel_bake.texel_input(ob, receiver.surface, depsgraph, receiver.options)
@@ -118,6 +120,18 @@ def _gather_scene(request: BakeRequest, context, depsgraph):
         if sources <= set(request.names):
             request.notes.append("no visible mesh besides the receivers casts shadows; "
                                  "each receiver is shadowed by the receivers only")
+
+
+def _gather_probe_volumes(request: BakeRequest, context):
+    """The visible probe volumes, baked with the static scene's shadows, in this process (a farm's shards share out
+    the receivers only)."""
+    volumes = probe_volumes.volumes_to_bake(context, request.problems)
+    if volumes and request.occluders is None:
+        request.notes.append("probe volumes hold the scene's shadows: an unshadowed bake leaves them as they were")
+    elif volumes and request.farm:
+        request.notes.append("probe volumes bake on one machine: a farm bake leaves them as they were")
+    else:
+        request.probe_volumes = volumes
 
 
 def _alone(request: BakeRequest, receiver: ReceiverInput) -> BakeRequest:

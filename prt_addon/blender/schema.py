@@ -1,7 +1,8 @@
 """The settings PRT saves in the file: the scene's bake settings (`prt_bake`), SH lights (`prt_lights`,
 `prt_active_light`), display switches (`prt_display`) and validation settings (`prt_validate`), and each object's
-storage choice (`prt_storage`, `prt_resolution`, ...). The command line, the checks and the interface all read
-them, so they register on their own, without any panel or operator (register, unregister).
+storage choice (`prt_storage`, `prt_resolution`, ...) and probe volume (`prt_probe_volume`, `prt_probe_resolution`).
+The command line, the checks and the interface all read them, so they register on their own, without any panel or
+operator (register, unregister).
 
 The bake settings' properties are made from core.settings, the one definition the command line also reads. Every
 light and display property is animatable and drivable, and has an update callback: Blender then tags the scene when
@@ -12,7 +13,7 @@ import math
 
 import bpy
 from bpy.props import (BoolProperty, CollectionProperty, EnumProperty, FloatProperty, FloatVectorProperty,
-                       IntProperty, PointerProperty, StringProperty)
+                       IntProperty, IntVectorProperty, PointerProperty, StringProperty)
 
 from ..core import settings as spec
 from ..core.bake import BakeSettings
@@ -49,6 +50,8 @@ def setting_property(setting: spec.Setting):
     common = {"name": setting.label, "description": setting.description, "default": setting.default}
     if isinstance(setting.default, bool):
         return BoolProperty(**common)
+    if isinstance(setting.default, tuple):
+        return IntVectorProperty(size=len(setting.default), min=setting.minimum, max=setting.maximum, **common)
     if setting.choices:
         return EnumProperty(items=list(setting.choices), **common)
     if isinstance(setting.default, float):
@@ -189,7 +192,8 @@ OBJECT_STORAGE = [(bpy.types.Object, OBJECT_PREFIX + setting.name, setting_prope
         name="Add Lightmap UV Map", default=True, description="Without a chosen UV map, PRT may add its own "
         "'PRT Lightmap' map (Lightmap Pack); the object's own UV maps are never changed")),
     (bpy.types.Object, OBJECT_PREFIX + spec.DYNAMIC.name, setting_property(spec.DYNAMIC)),
-]
+] + [(bpy.types.Object, OBJECT_PREFIX + setting.name, setting_property(setting))
+     for setting in (spec.PROBE_VOLUME, spec.PROBE_RESOLUTION)]
 
 register, unregister = classes_and_properties(classes, [
     (bpy.types.Scene, "prt_bake", PointerProperty(type=PRT_PG_bake_settings)),

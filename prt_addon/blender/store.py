@@ -8,7 +8,7 @@ import bpy
 import numpy as np
 
 from ..core import job, subsurface
-from . import fingerprint, storage
+from . import fingerprint, probe_volumes, storage
 from .execute import INTERPOLATION_KEYS, BakeResults
 from .plan import BakePlan
 
@@ -68,6 +68,8 @@ def _store_one(plan: BakePlan, results: BakeResults) -> BakeReport:
         if plan.request.dynamic:
             fields[storage.DYNAMIC_KEY] = True
         layout.write(bpy.data.objects[(name, None)].data, result, fields, settings)
+    if results.probes is not None:
+        notes += probe_volumes.write(plan.request.probe_volumes, results.probes, settings)
     lattices = [f"texel lattices: {results.lattices}"] if results.lattices else []
     return BakeReport(summary, results.names, results.problems, notes, mixed, results.decisions + lattices)
 

@@ -91,6 +91,7 @@ class BakeSize:
     processes: int            # processes that cast rays
     spawned: bool             # spawned workers load their own copy of the job
     ray_engine: str = "bvhtree"  # the engine that casts them (core.engines)
+    probe_values: int = 0     # the probe volumes' matrices: probes × channels × n⁴ (core.probe_transfer)
 
     @property
     def coefficients(self) -> int:
@@ -100,21 +101,23 @@ class BakeSize:
 def bake_bytes(size: BakeSize) -> int:
     """Peak memory of the bake in this process and its workers: the points and their transfer, the occluders and
     their ray engine (once more per spawned worker, which is a Blender of its own), each process's working chunk,
-    and in interreflected bakes the recorded hits and the bounce operator built from them."""
+    and in interreflected bakes the recorded hits and the bounce operator built from them; the probes' matrices
+    (float64)."""
     transfer = size.points * size.coefficients * size.channels * (4 + 3 * 8)  # float32 result, float64 bounces
     per_triangle = TRIANGLE_BYTES + (EMBREE_TRIANGLE_BYTES if size.ray_engine == "embree" else 0)
     scene = size.occluder_vertices * OCCLUDER_VERTEX_BYTES + size.occluder_triangles * per_triangle
     spawned = size.processes - 1 if size.spawned else 0
     hits = int(size.rays * size.hits_per_ray * HIT_BYTES)
     return ((size.points * POINT_BYTES + scene) * (1 + spawned) + transfer + size.processes * PROCESS_BYTES + hits
-            + spawned * SPAWNED_BYTES)
+            + spawned * SPAWNED_BYTES + size.probe_values * 8)
 
 
 def stored_bytes(size: BakeSize) -> int:
     """The attributes written on the meshes (kept in memory and in the saved file): float32 vectors of 3
-    coefficients per channel, the error, the rule that decided each row (int32), and each split corner's point."""
+    coefficients per channel, the error, the rule that decided each row (int32), and each split corner's point; and
+    the probes' float32 matrices."""
     vectors = -(-size.coefficients // 3) * 3
-    return size.stored_rows * (vectors * size.channels + 2) * 4 + size.split_corners * 4
+    return size.stored_rows * (vectors * size.channels + 2) * 4 + size.split_corners * 4 + size.probe_values * 4
 
 
 def available_memory() -> int | None:
@@ -140,7 +143,7 @@ def memory_check(size: BakeSize, available: int | None) -> Check:
         return Check(INFO, "memory", f"{said}; the memory available is unknown here")
     if needed + stored > available:
         return Check(ERROR, "memory", f"{said}, more than the {format_bytes(available)} available; lower the order, "
-                                      f"the samples or the workers, or bake fewer objects at a time")
+                                      f"the samples or the workers, or bake fewer objects or probes at a time")
     if needed + stored > WARN_FRACTION * available:
         return Check(WARNING, "memory", f"{said}, close to the {format_bytes(available)} available")
     return Check(OK, "memory", f"{said}, of {format_bytes(available)} available")

@@ -88,6 +88,13 @@ TEXEL = (STORAGE, RESOLUTION, TEXEL_SIZE)
 # its own frame, and the display turns the SH lights into that frame (blender.request, blender.relighting).
 DYNAMIC = Setting("dynamic", "Dynamic", "Bake its self-shadowing in its own frame, against itself only, so it may "
                   "move and turn without a rebake; other objects neither shadow it nor are shadowed by it", False)
+# Per object: an Empty whose cube holds a grid of PRT probes (core.probe_transfer, core.probe_grid), baked with the
+# static scene; the dynamic objects inside it are lit through them (blender.probe_volumes).
+PROBE_VOLUME = Setting("probe_volume", "Probe Volume", "Its cube holds a grid of PRT probes, baked with the static "
+                       "scene, that carry the scene's shadows and bounced light to the dynamic objects inside it",
+                       False)
+PROBE_RESOLUTION = Setting("probe_resolution", "Probes", "Probes along the volume's X, Y and Z, one at the centre of "
+                           "each cell", (4, 4, 4), 1, 64)
 
 
 def worker_count(workers: int) -> int:

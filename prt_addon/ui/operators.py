@@ -1,12 +1,14 @@
-"""Operators: the bake (modal in the UI, synchronous in background mode), clearing a bake and the glTF export; the
-modal driver of jobs (core.progress.Job) that the validation shares."""
+"""Operators: the bake (modal in the UI, synchronous in background mode), clearing a bake, adding a probe volume and
+the glTF export; the modal driver of jobs (core.progress.Job) that the validation shares."""
 
 import bpy
 from bpy_extras.io_utils import ExportHelper
 
 from ..blender import geometry, gltf, storage
+from ..blender.texel_bake import OBJECT_PREFIX
 from ..blender.scene_bake import SceneBake
 from ..core import checks
+from ..core import settings as spec
 from ..core.errors import InputError
 from ..core.progress import format_duration, old_objects_frozen
 from .checks import checked_bake
@@ -171,6 +173,30 @@ class PRT_OT_clear(bpy.types.Operator):
         return {"FINISHED"}
 
 
+class PRT_OT_add_probe_volume(bpy.types.Operator):
+    """Add a PRT probe volume at the 3D cursor: scale its cube over the scene; the bake stores a transfer matrix at
+    each of its probes, which lights the dynamic objects inside it with the static scene's shadows and bounces"""
+    bl_idname = "prt.add_probe_volume"
+    bl_label = "Add Probe Volume"
+    bl_options = {"REGISTER", "UNDO"}
+
+    @classmethod
+    def poll(cls, context):
+        return context.mode == "OBJECT"
+
+    def execute(self, context):
+        volume = bpy.data.objects.new("PRT Probe Volume", None)
+        volume.empty_display_type = "CUBE"
+        volume.location = context.scene.cursor.location
+        setattr(volume, OBJECT_PREFIX + spec.PROBE_VOLUME.name, True)
+        context.collection.objects.link(volume)
+        for ob in context.selected_objects:
+            ob.select_set(False)
+        volume.select_set(True)
+        context.view_layer.objects.active = volume
+        return {"FINISHED"}
+
+
 class PRT_OT_export_gltf(bpy.types.Operator, ExportHelper):
     """Export the visible baked meshes and the camera as glTF binary: transfer rotated into glTF's frame and packed
     for the profile, the SH lights in the extras, the colours under the current lights as COLOR_0"""
@@ -199,6 +225,6 @@ class PRT_OT_export_gltf(bpy.types.Operator, ExportHelper):
         return {"FINISHED"}
 
 
-classes = (PRT_OT_bake, PRT_OT_clear, PRT_OT_export_gltf)
+classes = (PRT_OT_bake, PRT_OT_clear, PRT_OT_add_probe_volume, PRT_OT_export_gltf)
 
 register, unregister = bpy.utils.register_classes_factory(classes)

@@ -1,9 +1,9 @@
 """The sidebar tab "PRT" in the 3D View: where every PRT panel lives (SidebarPanel), and the Bake panel with the
-active object's stored bake. The Lights and Display panels are in lights.py, Validation in validation.py."""
+active object's stored bake, or the active probe volume's probes. The Lights and Display panels are in lights.py, Validation in validation.py."""
 
 import bpy
 
-from ..blender import layouts, storage
+from ..blender import layouts, probe_volumes, storage
 from ..blender.request import ray_engine_label
 from ..core import engines, rules
 from .checks import draw_checklist
@@ -59,6 +59,7 @@ class PRT_PT_bake(SidebarPanel, bpy.types.Panel):
             row.operator("prt.bake", icon="RENDER_STILL")
             row.operator("prt.clear", icon="X", text="")
             layout.operator("prt.bake_stale", icon="FILE_REFRESH")
+            layout.operator("prt.add_probe_volume", icon="LIGHTPROBE_VOLUME")
             draw_checklist(layout, context)
             layout.operator("prt.export_gltf", icon="EXPORT")
 
@@ -137,6 +138,32 @@ class PRT_PT_bake_info(ActiveMeshPanel, bpy.types.Panel):
         column.label(text=f"Baked {meta['date']}")
 
 
-classes = (PRT_PT_bake, PRT_PT_storage, PRT_PT_bake_info)
+class PRT_PT_probe_volume(SidebarPanel, bpy.types.Panel):
+    """The active probe volume: its probes per axis and what its bake stored."""
+    bl_label = "Probe Volume"
+    bl_idname = "PRT_PT_probe_volume"
+    bl_parent_id = "PRT_PT_bake"
+
+    @classmethod
+    def poll(cls, context):
+        return context.active_object is not None and probe_volumes.is_probe_volume(context.active_object)
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        ob = context.active_object
+        layout.prop(ob, "prt_probe_resolution")
+        meta = ob.get(probe_volumes.METADATA_KEY)
+        if meta is None:
+            layout.label(text="Not baked", icon="INFO")
+            return
+        column = layout.column(align=True)
+        column.label(text=f"Order {meta['order']}, {meta['mode']}, {meta['rays']} rays per probe")
+        column.label(text=f"{meta['inside_probes']} probes inside geometry, left out")
+        column.label(text=f"Est. error max {meta['est_max_error']:.4f}")
+        column.label(text=f"Baked {meta['date']}")
+
+
+classes = (PRT_PT_bake, PRT_PT_storage, PRT_PT_bake_info, PRT_PT_probe_volume)
 
 register, unregister = bpy.utils.register_classes_factory(classes)

@@ -1,0 +1,149 @@
+"""PRT probe volumes in Blender: an Empty shown as a cube (its display size the half side), marked `prt_probe_volume`,
+that the user scales over the scene, with its probes per axis in `prt_probe_resolution` (blender.schema; the grid is
+core.probe_grid's). A bake of the static scene bakes every visible one (blender.request, blender.execute) and stores
+each probe's transfer matrix on its Empty (blender.store); the display lights each dynamic object from the volume
+around its centre (blender.relighting).
+
+Stored on the Empty, as custom properties saved in the .blend with it:
+- `_prt_probe_transfer`: float32 array, the matrices (P, C, n², n²) in C order, probes numbered as core.probe_grid;
+- `_prt_probe_valid`: int array (P,), 0 for a probe inside static geometry (left out of the interpolation);
+- `prt_probes` (a group): layout (PROBE_LAYOUT), order, channels, resolution, placement (where the probes were
+  baked: the matrix taking core.probe_grid's cube [−1, 1]³ to world space, the display size included, 16 floats by
+  rows; moving the Empty afterwards does not move them), mode, samples, rays, seed, inside_probes, est_max_error
+  (the largest probe's standard error, Frobenius norm), date, bake_id.
+An Empty has no mesh whose attributes could hold them; ID property arrays are saved, duplicated and deleted with the
+object, and read back through the buffer protocol at once (a million floats in milliseconds).
+"""
+
+from dataclasses import dataclass
+from datetime import datetime, timezone
+import uuid
+
+import bpy
+import numpy as np
+
+from ..core import probe_grid
+from ..core import settings as spec
+from ..core.errors import StaleBake
+from .texel_bake import OBJECT_PREFIX
+
+TRANSFER_KEY = "_prt_probe_transfer"
+VALID_KEY = "_prt_probe_valid"
+METADATA_KEY = "prt_probes"
+PROBE_LAYOUT = 1  # bump when the stored layout or its conventions change
+
+
+@dataclass
+class VolumeInput:
+    """A probe volume to bake: its name, placement (4, 4: core.probe_grid's cube to world space) and probes per
+    axis."""
+    name: str
+    matrix: np.ndarray
+    resolution: tuple
+
+    @property
+    def positions(self) -> np.ndarray:
+        return probe_grid.probe_positions(self.matrix, self.resolution)
+
+
+@dataclass
+class StoredProbes:
+    """A probe volume's bake as stored: its matrices (P, C, n², n²), which probes are valid (P,), the inverse of
+    the placement they were baked at (4, 4), its probes per axis and SH order."""
+    matrices: np.ndarray
+    valid: np.ndarray
+    to_volume: np.ndarray
+    resolution: tuple
+    order: int
+
+
+def is_probe_volume(ob) -> bool:
+    return ob.type == "EMPTY" and bool(getattr(ob, OBJECT_PREFIX + spec.PROBE_VOLUME.name, False))
+
+
+def volumes_to_bake(context, problems: list) -> list[VolumeInput]:
+    """The visible probe volumes of the view layer; one flat on an axis (zero scale) is left out with its reason in
+    `problems`."""
+    found = []
+    for ob in context.view_layer.objects:
+        if not (is_probe_volume(ob) and ob.visible_get()):
+            continue
+        # The cube drawn: [−size, size]³ in the Empty's frame, which core.probe_grid takes as [−1, 1]³.
+        matrix = np.array(ob.matrix_world, dtype=np.float64) @ np.diag([ob.empty_display_size] * 3 + [1.0])
+        if abs(np.linalg.det(matrix[:3, :3])) < 1e-12:
+            problems.append(f"{ob.name!r}: a probe volume flat on an axis (zero scale) holds no probes; scale it")
+            continue
+        found.append(VolumeInput(ob.name, matrix, tuple(getattr(ob, OBJECT_PREFIX + spec.PROBE_RESOLUTION.name))))
+    return found
+
+
+def write(volumes: list[VolumeInput], probes, settings) -> list[str]:
+    """Each volume's share of `probes` (core.probe_transfer.ProbeTransfer, the volumes' probes in order) on its
+    Empty; one line per volume for the bake's notes."""
+    lines, first = [], 0
+    for volume in volumes:
+        rows = slice(first, first + int(np.prod(volume.resolution)))
+        first = rows.stop
+        ob = bpy.data.objects[volume.name]
+        matrices = probes.matrices[rows]
+        ob[TRANSFER_KEY] = np.ascontiguousarray(matrices, dtype=np.float32).ravel()
+        ob[VALID_KEY] = (~probes.inside[rows]).astype(np.int32)
+        inside = int(probes.inside[rows].sum())
+        ob[METADATA_KEY] = {
+            "layout": PROBE_LAYOUT, "order": settings.order, "channels": matrices.shape[1],
+            "resolution": list(volume.resolution), "placement": volume.matrix.ravel().tolist(),
+            "mode": settings.mode, "samples": settings.samples, "rays": probes.rays, "seed": settings.seed,
+            "inside_probes": inside, "est_max_error": float(probes.std_error[rows].max(initial=0.0)),
+            "date": datetime.now(timezone.utc).isoformat(timespec="seconds"), "bake_id": uuid.uuid4().hex,
+        }
+        ob.update_tag()  # the display reads the new probes (blender.relighting)
+        lines.append(f"probe volume {volume.name!r}: {len(matrices)} probes, {inside} inside geometry and left out")
+    return lines
+
+
+def bake_id(ob):
+    """The stored bake's id, None without one."""
+    meta = ob.get(METADATA_KEY)
+    return None if meta is None else meta.get("bake_id")
+
+
+def read(ob) -> StoredProbes:
+    """The Empty's stored probes; raises StaleBake where they are missing or of another layout."""
+    meta = ob.get(METADATA_KEY)
+    if meta is None or TRANSFER_KEY not in ob or VALID_KEY not in ob:
+        raise StaleBake(f"probe volume {ob.name!r} has no PRT bake")
+    if meta.get("layout") != PROBE_LAYOUT:
+        raise StaleBake(f"probe volume {ob.name!r} was baked with layout version {meta.get('layout')}; rebake it")
+    resolution, order, channels = tuple(meta["resolution"]), meta["order"], meta["channels"]
+    size = order * order
+    matrices = np.frombuffer(ob[TRANSFER_KEY], dtype=np.float32)
+    count = int(np.prod(resolution))
+    if matrices.size != count * channels * size * size:
+        raise StaleBake(f"probe volume {ob.name!r} holds {matrices.size} values, not its {count} probes'; rebake it")
+    placement = np.array(meta["placement"], dtype=np.float64).reshape(4, 4)
+    return StoredProbes(matrices.reshape(count, channels, size, size).astype(np.float64),
+                        np.frombuffer(ob[VALID_KEY], dtype=np.int32) != 0, np.linalg.inv(placement),
+                        resolution, order)
+
+
+def containing(stored: list[StoredProbes], point) -> tuple[StoredProbes, np.ndarray] | None:
+    """(the smallest of the volumes whose cube holds `point` (3,) in world space, the point in its frame), or None."""
+    best = None
+    for probes in stored:
+        local = probes.to_volume[:3, :3] @ np.asarray(point, dtype=np.float64) + probes.to_volume[:3, 3]
+        if np.all(np.abs(local) <= 1.0):
+            size = 1.0 / abs(np.linalg.det(probes.to_volume[:3, :3]))
+            if best is None or size < best[0]:
+                best = size, probes, local
+    return None if best is None else best[1:]
+
+
+def light_at(stored: list[StoredProbes], point, light) -> np.ndarray | None:
+    """(3, n²) the SH light arriving at `point` in world space from the distant light (3, n²) through the volume that
+    holds it (core.probe_grid), or None where no volume of the light's order holds it."""
+    found = containing([probes for probes in stored if probes.order ** 2 == light.shape[-1]], point)
+    if found is None:
+        return None
+    probes, local = found
+    indices, weights = probe_grid.trilinear_weights(local, probes.resolution, probes.valid)
+    return probe_grid.incoming_light(probes.matrices, indices, weights, light)

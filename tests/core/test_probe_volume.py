@@ -1,0 +1,159 @@
+"""PRT probes against closed forms: the transfer matrix of a probe in the open (the identity), above an infinite floor
+(the upper hemisphere's SH product integrals, by Gauss-Legendre quadrature here, with scipy's SH) and above a floor
+that reflects a known exitant transfer (plus the lower hemisphere's integrals times it); probes inside a closed box;
+the grid's probe positions, trilinear weights and incoming light against hand values."""
+
+import numpy as np
+import pytest
+
+from quadrature import reference_sh
+from prt_addon.core import bake, probe_grid, probe_transfer
+
+ORDER = 4
+SIZE = ORDER * ORDER
+FLOOR = 1000.0  # half the floor's side: rays that miss it lie within 1e-5 rad of the horizon
+HEIGHT = 0.01
+
+
+def caster(vertices, triangles):
+    vertices = np.asarray(vertices, dtype=np.float64).reshape(-1, 3)
+    triangles = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
+    return bake.Occluders(vertices, triangles, vertices.copy(), engine="reference").ray_caster()
+
+
+def bake_probes(*arguments, **options):
+    return probe_transfer.ProbeJob(*arguments, **options).run()
+
+
+def floor_caster():
+    """Two triangles of the plane z = 0 facing up (+Z)."""
+    s = FLOOR
+    return caster([[-s, -s, 0], [s, -s, 0], [s, s, 0], [-s, s, 0]], [[0, 1, 2], [0, 2, 3]])
+
+
+def closed_box(low, high):
+    """A cube's 12 triangles, wound to face outwards."""
+    corners = np.array([[x, y, z] for x in (low[0], high[0]) for y in (low[1], high[1]) for z in (low[2], high[2])])
+    quads = [(0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4), (1, 5, 7, 3)]
+    triangles = [t for a, b, c, d in quads for t in ((a, b, c), (a, c, d))]
+    centre = corners.mean(0)
+    for t in triangles:  # outward by construction; checked, as the test depends on it
+        a, b, c = corners[list(t)]
+        assert np.dot(np.cross(b - a, c - a), a - centre) > 0
+    return corners, triangles
+
+
+def hemisphere_integrals(upper: bool, nodes=32):
+    """(directions, weights) on one hemisphere: Gauss-Legendre in z over [0, 1] (or [−1, 0]) × uniform φ, exact
+    for the products of two SH of order < nodes (each a polynomial in z after integrating over φ)."""
+    z, w = np.polynomial.legendre.leggauss(nodes)
+    z, w = 0.5 * (z + 1.0), 0.5 * w
+    z = z if upper else -z
+    count = 2 * nodes
+    phi = 2 * np.pi * (np.arange(count) + 0.5) / count
+    r = np.sqrt(1 - z * z)[:, None]
+    directions = np.stack(np.broadcast_arrays(r * np.cos(phi), r * np.sin(phi), z[:, None]), axis=-1)
+    return directions.reshape(-1, 3), np.repeat(w, count) * (2 * np.pi / count)
+
+
+def within_noise(matrices, expected, std_error):
+    """‖T − expected‖_F within 3 standard errors, for each probe; the errors small enough to mean something."""
+    difference = np.linalg.norm((matrices - expected).reshape(len(matrices), -1), axis=1)
+    assert np.all(std_error < 0.05), std_error
+    np.testing.assert_array_less(difference, 3.0 * std_error)
+
+
+def test_a_probe_with_nothing_around_has_the_identity():
+    found = bake_probes(caster(np.zeros((0, 3)), np.zeros((0, 3))), [[0, 0, 0], [4.0, -2, 7]],
+                                          ORDER, 1024)
+    within_noise(found.matrices[:, 0], np.eye(SIZE), found.std_error)
+    assert not found.inside.any()
+
+
+def test_a_probe_above_an_infinite_floor_has_the_upper_hemisphere_products():
+    directions, weights = hemisphere_integrals(upper=True)
+    y = reference_sh(ORDER, directions)
+    upper = np.einsum("k,ki,kj->ij", weights, y, y)
+    found = bake_probes(floor_caster(), [[0, 0, HEIGHT], [3.0, -5.0, HEIGHT]], ORDER, 2048)
+    within_noise(found.matrices[:, 0], upper, found.std_error)
+    assert np.allclose(found.back_share, 0.0) and not found.inside.any()
+
+
+def test_a_floor_that_reflects_adds_its_exitant_transfer_over_the_lower_hemisphere():
+    """A floor whose every point sends back Σ_j E_j L_j (coloured): T = ∫₊ y_i y_j + (∫₋ y_i) E_j per channel."""
+    exitant = np.random.default_rng(3).uniform(-0.3, 0.5, (4, 3, SIZE))
+    exitant[:] = exitant[0]  # the same at every corner: the closed form needs it uniform
+    upper_directions, upper_weights = hemisphere_integrals(upper=True)
+    lower_directions, lower_weights = hemisphere_integrals(upper=False)
+    y = reference_sh(ORDER, upper_directions)
+    upper = np.einsum("k,ki,kj->ij", upper_weights, y, y)
+    lower = lower_weights @ reference_sh(ORDER, lower_directions)  # ∫₋ y_i
+    expected = upper[None] + np.einsum("i,cj->cij", lower, exitant[0])
+    found = bake_probes(floor_caster(), [[0, 0, HEIGHT], [1.0, 2.0, 0.5]], ORDER, 2048,
+                                          exitant=exitant)
+    assert found.matrices.shape == (2, 3, SIZE, SIZE)
+    within_noise(found.matrices, expected, found.std_error)
+
+
+def test_a_probe_below_a_floor_gets_no_reflection_from_its_back():
+    exitant = np.ones((4, 1, SIZE))
+    found = bake_probes(floor_caster(), [[0, 0, -HEIGHT]], ORDER, 1024, exitant=exitant)
+    directions, weights = hemisphere_integrals(upper=False)
+    y = reference_sh(ORDER, directions)
+    within_noise(found.matrices[:, 0], np.einsum("k,ki,kj->ij", weights, y, y), found.std_error)
+
+
+def test_probes_inside_a_closed_box_are_found_and_those_outside_or_above_a_floor_are_not():
+    corners, triangles = closed_box((-1, -1, 0), (1, 1, 2))
+    floor = np.array([[-9, -9, 0], [9, -9, 0], [9, 9, 0], [-9, 9, 0]])
+    scene = caster(np.vstack([corners, floor]), triangles + [[8, 9, 10], [8, 10, 11]])
+    points = [[0, 0, 1], [0.9, -0.9, 0.1], [1.5, 0, 1], [0, 0, 2.5], [3, 3, 0.5], [5, 0, -0.5]]
+    found = bake_probes(scene, points, ORDER, 256)
+    np.testing.assert_array_equal(found.inside, [True, True, False, False, False, True])
+    assert np.allclose(found.back_share[:2], 1.0)
+    assert 0.3 < found.back_share[5] < 0.7  # below a one-sided floor, its back fills the upper half
+
+
+def test_probes_sit_at_the_volume_cells_centres():
+    np.testing.assert_allclose(probe_grid.probe_points((2, 1, 3)), [
+        [-0.5, 0, -2 / 3], [-0.5, 0, 0], [-0.5, 0, 2 / 3], [0.5, 0, -2 / 3], [0.5, 0, 0], [0.5, 0, 2 / 3]])
+    matrix = np.array([[2, 0, 0, 10], [0, 0, -1, 0], [0, 3, 0, 1], [0, 0, 0, 1]], dtype=float)  # scale, turn, move
+    np.testing.assert_allclose(probe_grid.probe_positions(matrix, (2, 1, 1)), [[9, 0, 1], [11, 0, 1]])
+
+
+@pytest.mark.parametrize("point, valid, expected", [
+    ((0, 0, 0), None, {index: 1 / 8 for index in range(8)}),
+    ((0.25, -0.5, 0.5), None, {1: 0.25, 5: 0.75}),           # x 3/4 of the way, y on probe 0, z on probe 1
+    ((0.25, -0.5, 0.5), [5], {1: 1.0}),                      # its valid neighbour alone
+    ((0.25, -0.5, 0.5), [1, 5], {}),                         # none valid: no light
+    ((5, 5, 5), None, {7: 1.0}),                             # outside: clamped onto the last probe
+    ((0, 0, 0), [0, 1, 2, 3], {4: 0.25, 5: 0.25, 6: 0.25, 7: 0.25}),  # a wall of invalid probes at x < 0
+])
+def test_trilinear_weights_over_the_valid_probes(point, valid, expected):
+    mask = np.ones(8, dtype=bool)
+    mask[valid or []] = False
+    indices, weights = probe_grid.trilinear_weights(point, (2, 2, 2), mask)
+    found = {}
+    for index, weight in zip(indices, weights):
+        if weight:
+            found[int(index)] = found.get(int(index), 0.0) + weight
+    assert found.keys() == expected.keys()
+    np.testing.assert_allclose([found[k] for k in expected], list(expected.values()))
+
+
+def test_an_axis_of_one_probe_gives_it_the_weight():
+    indices, weights = probe_grid.trilinear_weights((0.7, -0.2, 0.9), (1, 1, 1), np.ones(1, dtype=bool))
+    assert set(indices[weights > 0]) == {0} and weights.sum() == pytest.approx(1.0)
+
+
+def test_incoming_light_is_the_weighted_sum_of_the_probes_products():
+    light = np.arange(3 * SIZE, dtype=float).reshape(3, SIZE)
+    grey = np.stack([np.eye(SIZE)[None], 3 * np.eye(SIZE)[None]])           # (2, 1, n², n²)
+    np.testing.assert_allclose(probe_grid.incoming_light(grey, np.array([0, 1]), np.array([0.5, 0.5]), light),
+                               2 * light)
+    coloured = np.zeros((1, 3, SIZE, SIZE))
+    coloured[0, :, 0, 0] = (1.0, 2.0, 4.0)  # each channel keeps only its own constant term, scaled
+    shown = probe_grid.incoming_light(coloured, np.array([0, 0]), np.array([0.25, 0.75]), light)
+    expected = np.zeros((3, SIZE))
+    expected[:, 0] = light[:, 0] * (1.0, 2.0, 4.0)
+    np.testing.assert_allclose(shown, expected)
