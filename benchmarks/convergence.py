@@ -214,7 +214,7 @@ def write_plot(path, rows, title, reference_text):
         axes.annotate(str(row.samples), (time_s, estimate), xytext=(6, 5), textcoords="offset points",
                       color=BLUE, fontsize=8)
     for axis in (axes.xaxis, axes.yaxis):
-        _plain_log_ticks(axis)
+        plain_log_ticks(axis)
     axes.grid(which="major", color="0.8")
     axes.grid(which="minor", color="0.93")
     axes.set(title=title, xlabel="bake time (s)", ylabel="RMS relative error")
@@ -223,7 +223,7 @@ def write_plot(path, rows, title, reference_text):
     figure.savefig(path)
 
 
-def _plain_log_ticks(axis):
+def plain_log_ticks(axis):
     """Ticks at 1, 2 and 5 × each power of ten, written as plain numbers: the range spans only a few decades."""
     axis.set_major_locator(LogLocator(subs=(1.0, 2.0, 5.0)))
     axis.set_major_formatter(FuncFormatter(lambda value, _: f"{value:g}"))

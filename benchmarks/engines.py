@@ -18,14 +18,17 @@ depend on the engine's answers (a round's rays are fixed by the seed), so both e
 5. The Final preset on the demo (interreflected, order 6, target 0.5 %) with 2 workers, once per engine: wall time,
    BVHTree ÷ Embree, and each bake split into its rays, its bounces (building G and bouncing) and their error
    estimate; with the load average, as the bounces are most of it and share the machine. Not in --quick.
+6. Error against run time: each engine's curve for the demo as its bake reports it (after each round and after the
+   bounces: seconds, rays, estimated RMS error), printed and drawn in one figure (--plot): the Final bakes of
+   section 5; in --quick, the demo at 64 samples with a 2 % target error.
 
 Run from the repository root:  .venv/bin/python benchmarks/engines.py [--quick | --final] [--json PATH]
-[--assets FOLDER]   (--final: section 5 alone)
+[--plot PNG] [--assets FOLDER]   (--final: sections 5 and 6 alone)
 """
 
 import argparse
 from collections import Counter
-from dataclasses import replace
+from dataclasses import asdict, replace
 import gc
 import os
 import sys
@@ -37,7 +40,7 @@ sys.path.insert(0, ROOT)
 import bpy  # noqa: E402  (bpy before mathutils, which the core imports)
 import numpy as np  # noqa: E402
 
-from benchmarks import assets  # noqa: E402
+from benchmarks import assets, engine_curves  # noqa: E402
 from prt_addon.blender.execute import execute, local_executor  # noqa: E402
 from prt_addon.blender.plan import plan_bake  # noqa: E402
 from prt_addon.blender.request import read_request, ray_engine_label  # noqa: E402
@@ -269,25 +272,39 @@ def engine_memory(caster) -> dict:
 
 
 # -- 5. the Final preset ------------------------------------------------------------------------------------------
-def final_bakes() -> dict:
-    """The demo baked with the Final preset and 2 workers by each engine: wall seconds and the bake's phases."""
+def final_bakes(curves: dict) -> dict:
+    """The demo baked with the Final preset and 2 workers by each engine: wall seconds and the bake's phases; each
+    bake's error curve into `curves`."""
     found = {}
     for name in ENGINES:
         assets.fresh_file()
         assets.sample_scenes.build_demo_scene()
         start = time.perf_counter()
         plan = planned(bake.BakeSettings(**presets.preset_values("final"), ray_engine=name))
-        phases = execute(plan, local_executor(2)).run().summary.phases_s
-        wall = time.perf_counter() - start
+        summary = execute(plan, local_executor(2)).run().summary
+        phases, wall = summary.phases_s, time.perf_counter() - start
         split = {"rays_s": phases["rays_s"], "bounces_s": phases["gather_setup_s"] + phases["bounces_s"],
                  "error_s": phases["bounce_error_s"]}
         found[name] = {"wall_s": wall, **split, "rest_s": wall - sum(split.values()), "load": os.getloadavg()}
+        curves[name] = summary.error_curve
         print(f"   {name:8} {wall:7.1f} s: rays {split['rays_s']:6.1f} s, bounces {split['bounces_s']:6.1f} s, "
               f"their error {split['error_s']:6.1f} s, the rest {found[name]['rest_s']:5.1f} s  (load average "
               f"{' '.join(f'{load:.1f}' for load in found[name]['load'])})", flush=True)
     found["ratio"] = found["bvhtree"]["wall_s"] / found["embree"]["wall_s"]
     print(f"   BVHTree ÷ Embree wall time {found['ratio']:.2f}×")
     return found
+
+
+# -- 6. error against run time ------------------------------------------------------------------------------------
+def curve_bakes(settings) -> dict:
+    """{engine: the demo bake's error curve (core.error_curve rows)} with 2 workers."""
+    curves = {}
+    for name in ENGINES:
+        assets.fresh_file()
+        assets.sample_scenes.build_demo_scene()
+        plan = planned(replace(settings, ray_engine=name))
+        curves[name] = execute(plan, local_executor(2)).run().summary.error_curve
+    return curves
 
 
 # -- the run -------------------------------------------------------------------------------------------------------
@@ -303,6 +320,8 @@ def main(argv=None) -> int:
                        "dense scene subdivided once, no Final bakes")
     which.add_argument("--final", action="store_true", help="only section 5: the Final preset's bakes")
     parser.add_argument("--json", help="also write the figures as JSON here")
+    parser.add_argument("--plot", default="engine_curves.png", help="the figure of both engines' error against run "
+                        "time on the demo (default: %(default)s)")
     parser.add_argument("--assets", default=assets.ASSETS, help="the folder of the public test meshes "
                         "benchmarks/assets.py's cases import (default: %(default)s)")
     args = parser.parse_args(argv)
@@ -323,7 +342,16 @@ def run(args) -> int:
         figures.update(engines_compared(args.quick))
     if not args.quick:
         print(f"\n5. The Final preset on the demo, 2 workers (cpu count {os.cpu_count()})")
-        figures["final"] = final_bakes()
+        curves = {}
+        figures["final"] = final_bakes(curves)
+    else:
+        curves = curve_bakes(bake.BakeSettings(samples=64, target_error=0.02, max_samples=1024))
+    what = "the Final preset" if not args.quick else "64 samples, target 2 %"
+    print(f"\n6. Error against run time, the demo with {what}, as each bake reports it")
+    print("\n".join(engine_curves.printed(curves)))
+    engine_curves.plot(curves, args.plot, f"The demo, {what}: estimated error against time")
+    print(f"   wrote {os.path.abspath(args.plot)}")
+    figures["curves"] = {name: [asdict(row) for row in rows] for name, rows in curves.items()}
     print(f"\ntotal {(time.perf_counter() - started) / 60:.1f} min")
     if args.json:
         write_json(args.json, figures)

@@ -91,8 +91,8 @@ def test_bake_smoke_run():
     assert rays > 1000
 
 
-def test_engines_smoke_run():
-    out = run_benchmark("engines", "--quick")
+def test_engines_smoke_run(tmp_path):
+    out = run_benchmark("engines", "--quick", "--plot", tmp_path / "curves.png")
     for case in ("sphere flat", "cylinder"):
         match = found(rf"^   {case}\s+\d+ faces\s+{{n}} rays  occlusion\s+{{n}} %  face\s+{{n}} %", out)
         assert number(match.group(1)) > 1000 and 99.0 <= number(match.group(3)) <= number(match.group(2)) <= 100.0
@@ -111,6 +111,12 @@ def test_engines_smoke_run():
         assert casting + contact + rest == pytest.approx(total, abs=0.02)
     goal_line(r"^   BVHTree ÷ Embree wall time {n}×  goal >= 5:", out, ">=", 5)
     number(found(r"^4\. Memory over the dense scene \(\d+ faces\): BVHTree {n} MB, Embree engine {n} MB", out).group(2))
+    for engine in ("Embree", "BVHTree"):  # each bake's own curve: rounds of more rays and less error
+        line = found(rf"^   {engine}\s+round 1 .*$", out).group(0)
+        rows = re.findall(rf"(round \d+|bounces)\s+({NUMBER}) s\s+({NUMBER}) M rays RMS ({NUMBER})", line)
+        assert len(rows) >= 2 and all(float(b[2]) >= float(a[2]) and float(b[3]) <= float(a[3])
+                                      for a, b in zip(rows, rows[1:])), line
+    assert (tmp_path / "curves.png").read_bytes().startswith(b"\x89PNG")
 
 
 def test_estimator_study_smoke_run():
