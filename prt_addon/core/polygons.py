@@ -13,7 +13,7 @@ import math
 import numpy as np
 from numpy.polynomial import legendre
 
-from . import arrays, sh
+from . import arrays, lobes, sh
 
 # Detection: coplanar to this fraction of the object's size, and its triangles cover their convex hull to this
 # fraction of its area (a hole or a notch would only cost accuracy, never correctness, but then gains nothing).
@@ -145,6 +145,28 @@ def cones_and_blocked_transfer(order, apexes, normals, polygons):
     relative, side = _seen_from(apexes, polygons)
     planes = _cross(relative, np.roll(relative, -1, axis=2)) * side[..., None, None]
     return planes, _blocked_transfer(order, normals, relative, side)
+
+
+def lune_transfer(order, normals, planes):
+    """(c, order²): (1/π) ∫ (n·ω) Y_k(ω) dω over the directions in front of both each unit normal n (c, 3) and its
+    plane's unit normal m (c, 3): the part of n's unshadowed transfer that a plane through the point leaves open, a
+    lune of cosine-weighted share (1 + n·m)/2. Its corners, counter-clockwise from the centre, start at the middle
+    of its edge on m's plane, then its tip −e, the middle of its edge on n's horizon, its tip e: so no edge spans
+    half a circle, and the fan that measures its solid angle (_solid_angle) has no flat triangle."""
+    normals, planes = np.asarray(normals, dtype=np.float64), np.asarray(planes, dtype=np.float64)
+    tips = _cross(normals, planes)
+    sines = np.linalg.norm(tips, axis=1)
+    dots = np.einsum("ij,ij->i", normals, planes)
+    lune = sines > 1e-12  # else the plane is the tangent plane: the whole hemisphere in front of it, or none
+    out = lobes.cosine_transfer(order, normals) * (~lune & (dots > 0.0))[:, None]
+    if lune.any():
+        n, m, e = normals[lune], planes[lune], tips[lune] / sines[lune, None]
+        across_m = n - dots[lune, None] * m  # the middle of the edge on m's plane, on n's side
+        across_n = m - dots[lune, None] * n  # the middle of the edge on n's horizon, on m's side
+        across_m /= np.linalg.norm(across_m, axis=1, keepdims=True)
+        across_n /= np.linalg.norm(across_n, axis=1, keepdims=True)
+        out[lune] = _cosine_sh_integrals(order, np.stack([across_m, -e, across_n, e], axis=1), n) / np.pi
+    return out
 
 
 def _blocked_transfer(order, normals, relative, side):

@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from quadrature import polygon_directions, polygon_transfer, random_directions
+from quadrature import polygon_directions, polygon_transfer, random_directions, reference_sh
 
 from prt_addon.core import polygons, sh
 
@@ -118,3 +118,41 @@ def test_largest_keeps_the_biggest_polygons():
     small, large = SQUARE * 0.5, SQUARE * 2.0
     assert [len(p) for p in polygons.largest([small, PENTAGON, large], 2)] == [4, 5]
     assert np.array_equal(polygons.largest([small, PENTAGON, large], 2)[0], large)
+
+
+def lune_quadrature(order, n, m, nodes=40):
+    """(1/π) ∫ (n·ω) Y_k(ω) dω over n's hemisphere in front of m's plane, with scipy's SH: about the axis the two
+    planes share the lune is a range of azimuths, whose integrand is a trigonometric polynomial in the polar angle
+    and in the azimuth, which Gauss-Legendre in each integrates to round-off."""
+    e = np.cross(n, m)
+    e /= np.linalg.norm(e)
+    a, b = n, np.cross(e, n)  # azimuth 0 at n: its hemisphere is |φ| < π/2
+    turn = math.atan2(m @ b, m @ a)
+    low, high = max(-math.pi / 2, turn - math.pi / 2), min(math.pi / 2, turn + math.pi / 2)
+    x, w = np.polynomial.legendre.leggauss(nodes)
+    theta, phi = math.pi * (x + 1) / 2, low + (high - low) * (x + 1) / 2
+    t, p = np.meshgrid(theta, phi, indexing="ij")
+    directions = (np.cos(t)[..., None] * e + (np.sin(t) * np.cos(p))[..., None] * a
+                  + (np.sin(t) * np.sin(p))[..., None] * b).reshape(-1, 3)
+    weights = (np.outer(w * math.pi / 2, w * (high - low) / 2) * np.sin(t)).ravel()
+    return (weights * (directions @ n)) @ reference_sh(order, directions) / np.pi
+
+
+@pytest.mark.parametrize("order", [1, 4, 8])
+def test_the_lune_a_plane_leaves_of_a_cosine_lobe_matches_quadrature_and_its_share_of_the_sky(order):
+    normals, planes = random_directions(6, seed=11), random_directions(6, seed=12)
+    planes[0] = -normals[0] + 0.01 * planes[0]  # nearly reversed: a thin lune
+    planes[0] /= np.linalg.norm(planes[0])
+    exact = polygons.lune_transfer(order, normals, planes)
+    truth = np.stack([lune_quadrature(order, n, m) for n, m in zip(normals, planes)])
+    assert np.abs(exact - truth).max() < 1e-12
+    # its DC coefficient: Y_0 times the cosine-weighted share of the hemisphere, (1 + n·m)/2
+    shares = (1 + np.einsum("ij,ij->i", normals, planes)) / 2
+    np.testing.assert_allclose(exact[:, 0], shares / (2 * math.sqrt(math.pi)), rtol=1e-12, atol=1e-15)
+
+
+def test_a_plane_along_the_tangent_plane_leaves_the_whole_lobe_or_none():
+    normals = random_directions(3, seed=5)
+    np.testing.assert_allclose(polygons.lune_transfer(4, normals, normals),
+                               polygons.lobes.unshadowed_transfer(4, normals), atol=1e-15)
+    assert not polygons.lune_transfer(4, normals, -normals).any()
