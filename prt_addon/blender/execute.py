@@ -17,8 +17,7 @@ import sys
 import bpy
 import numpy as np
 
-from ..core import error_curve, executors, interpolation, job, lobes, probe_transfer, texel_gather, texel_refine
-from ..core.statistics import rms
+from ..core import error_curve, executors, interpolation, job, lobes, probe_transfer, rules, texel_gather, texel_refine
 from ..core.errors import InputError
 from ..core.progress import JobSequence, WrappingJob
 from . import texel_plan
@@ -239,7 +238,9 @@ def merged_summary(outcomes: list, time_s: float) -> job.Summary:
     """One summary of a bake and its dynamic parts (BakeResults each), baked one after another in `time_s`: counts
     add, the error statistics are over every point, the bounces and the settings are the first bake's."""
     first, summaries = outcomes[0].summary, [outcome.summary for outcome in outcomes]
-    rel = np.concatenate([result.rel_error for outcome in outcomes for result in outcome.results])
+    results = [result for outcome in outcomes for result in outcome.results]
+    rel, doubt = (np.concatenate([getattr(result, name) for result in results])
+                  for name in ("rel_error", "rel_rule_error"))
     merged = job.Summary(**{**vars(first), "per_object": {}, "phases_s": {}})
     for name in ("objects", "vertices", "points", "rays", "skipped_vertices", "split_vertices", "interp_points",
                  "interp_rays"):
@@ -251,7 +252,8 @@ def merged_summary(outcomes: list, time_s: float) -> job.Summary:
     merged.time_s = time_s
     casting_s = sum(summary.rays / summary.rays_per_s for summary in summaries if summary.rays_per_s > 0)
     merged.rays_per_s = merged.rays / casting_s if casting_s > 0 else 0.0
-    merged.est_rms_rel_error, merged.est_max_rel_error = rms(rel), float(rel.max(initial=0.0))
+    for name, value in rules.estimate(rel, doubt).items():
+        setattr(merged, name, value)
     measured = [summary for summary in summaries if summary.est_interp_rms_rel_error is not None]
     if measured and merged.interp_points:
         merged.est_interp_rms_rel_error = float(np.sqrt(sum(

@@ -12,7 +12,8 @@ Stored layout (documented in the README; bump core.bake.CONVENTION_VERSION when 
   convention 2; CORNER, one row per face corner, where some vertex is split by its corner normals, with the INT
   CORNER attribute `_prt_point` giving each corner's shading point (corners of one point hold equal rows).
 - Mesh custom property `prt` (a group): order, mode, samples, rays, convention, domain, vertex_count,
-  corner_count, points, split_vertices, est_rms_rel_error, est_max_rel_error, time_s, date, bake_id, seed,
+  corner_count, points, split_vertices, est_rms_rel_error, est_max_rel_error (noise and the rules' doubt),
+  est_rule_rms_rel_error (the rules' part, core.rules.estimate), time_s, date, bake_id, seed,
   target_error, skipped_vertices, decided_by_rule (a group: points per rule, core.rules.counts), channels (and
   bounces for interreflected bakes), est_interp_rms_rel_error, est_interp_max_rel_error, interp_points,
   ray_engine (the engine that cast the rays, with its version; none for an unshadowed bake), error_curve (a list of
@@ -28,7 +29,6 @@ import bpy
 import numpy as np
 
 from ..core import bake, rules
-from ..core.statistics import rms
 from ..core.errors import InputError, StaleBake
 
 ATTRIBUTE_PREFIX = "_prt_"
@@ -102,8 +102,7 @@ def write_metadata(mesh, result, settings: bake.BakeSettings, domain: str, split
         "rays": int(result.rays.sum()),
         "skipped_vertices": int(result.skipped.sum()),
         "decided_by_rule": rules.counts(result.rules),
-        "est_rms_rel_error": rms(result.rel_error),
-        "est_max_rel_error": float(result.rel_error.max(initial=0.0)),
+        **rules.estimate(result.rel_error, result.rel_rule_error),
         "date": datetime.now(timezone.utc).isoformat(timespec="seconds"),
         "bake_id": uuid.uuid4().hex,  # tells two bakes apart even within the same second
         **fields,

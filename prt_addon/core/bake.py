@@ -71,6 +71,9 @@ class Receiver:
     # (V, 3) the unit face normal whose plane clips each row's sky (core.corners: the corners at a vertex of an edge
     # with three or more faces), zero where none does; None: none does.
     clip: np.ndarray | None = None
+    # (V, 3) the unit face normal of each `against` row's corner nearest to facing it (core.corners), zero elsewhere:
+    # how much sky Cycles leaves it (core.rules.doubt). None: not known, and the doubt is taken at its widest.
+    against_face: np.ndarray | None = None
 
     @staticmethod
     def key_for(name: str) -> int:
@@ -81,7 +84,8 @@ class Receiver:
         def part(values):
             return None if values is None else values[rows]
         return Receiver(self.name, self.positions[rows], self.normals[rows], self.key, part(self.inward),
-                        part(self.ray_groups), part(self.surface_step), part(self.against), part(self.clip))
+                        part(self.ray_groups), part(self.surface_step), part(self.against), part(self.clip),
+                        part(self.against_face))
 
 
 @dataclass
@@ -132,5 +136,6 @@ class ChunkResult:
     rays: np.ndarray       # (c,) rays cast from each vertex (its estimate also uses its ray group's)
     skipped: np.ndarray    # (c,) bool: exact without rays (provably unoccluded, or in contact)
     rules: np.ndarray      # (c,) uint8: the rule that decided each point (core.rules), MEASURED where none did
+    rule_error: np.ndarray  # (c,) the norm of what that rule may have got wrong (core.rules.doubt), 0 where none did
     curve: np.ndarray      # (r, 3) float64: after each of its r ≥ 1 rounds, core.error_curve.CHUNK_COLUMNS
     records: interreflect.HitRecords | None = None  # interreflected mode: blocked rays' hits (chunk-local rows)

@@ -33,6 +33,9 @@ class ShadingPoints:
     vertex_count: int
     against: np.ndarray | None = None  # (P,) bool: the point's corners' normal points against their faces; None: none
     clip: np.ndarray | None = None  # (P, 3) the unit face normal whose plane clips the point's sky, zero for none
+    # (P, 3) for a point against its faces, the unit face normal of its corner nearest to facing it (the widest sky
+    # Cycles leaves it: core.rules.doubt), zero elsewhere; None where `against` is
+    against_face: np.ndarray | None = None
 
     @property
     def extra_points(self) -> int:
@@ -85,10 +88,12 @@ def on_fins(corner_vertices: np.ndarray, corner_edges: np.ndarray, edge_vertices
 
 
 def shading_points(corner_vertices: np.ndarray, corner_normals: np.ndarray, vertex_count: int,
-                   against: np.ndarray | None = None, clip: np.ndarray | None = None) -> ShadingPoints:
+                   against: np.ndarray | None = None, clip: np.ndarray | None = None,
+                   face_normals: np.ndarray | None = None) -> ShadingPoints:
     """Groups corners (C,) with normals (C, 3) into points, the corners `against` their faces (C,) bool apart from
     the others (None: none is), and those of each distinct `clip` plane (C, 3) unit face normals, zero for corners
-    not clipped (None: none is); a vertex without corners keeps a zero normal."""
+    not clipped (None: none is); a vertex without corners keeps a zero normal. `face_normals` (C, 3), the corners'
+    face normals (first_triangle_normals), give each point against its faces its `against_face`."""
     rounded = np.round(np.asarray(corner_normals, dtype=np.float64), NORMAL_DECIMALS) + 0.0  # -0.0 → 0.0
     keys = [corner_vertices.astype(np.float64), rounded] + ([] if against is None else [against.astype(np.float64)])
     keys += [] if clip is None else [np.round(clip, NORMAL_DECIMALS) + 0.0]
@@ -111,12 +116,30 @@ def shading_points(corner_vertices: np.ndarray, corner_normals: np.ndarray, vert
     if against is not None and against.any():
         point_against = np.zeros(len(point_vertices), dtype=bool)
         point_against[point_of_group] = against[first_corner]
+    point_face = None
+    if point_against is not None and face_normals is not None:
+        point_face = _widest_faces(point_of_group[group_of_corner], np.asarray(corner_normals, np.float64),
+                                   np.asarray(face_normals, np.float64), against, len(point_vertices))
     point_clip = None
     if clip is not None and clip.any():
         point_clip = np.zeros((len(point_vertices), 3))
         point_clip[point_of_group] = clip[first_corner]
     return ShadingPoints(point_of_group[group_of_corner], point_vertices, point_normals, vertex_count, point_against,
-                         point_clip)
+                         point_clip, point_face)
+
+
+def _widest_faces(corner_points, corner_normals, face_normals, against, count):
+    """(count, 3): for each point of corners `against` their faces, the unit face normal of its corner with the
+    largest N·Ng (the least reversed, whose sky in Cycles is widest); zero elsewhere."""
+    length = np.linalg.norm(face_normals, axis=1, keepdims=True)
+    unit = np.divide(face_normals, length, out=np.zeros_like(face_normals), where=length > 0)
+    rows = np.flatnonzero(against)
+    dots = np.einsum("ij,ij->i", corner_normals[rows], unit[rows])
+    order = np.lexsort((dots, corner_points[rows]))  # each point's corners, its widest last
+    last = order[np.r_[corner_points[rows][order][1:] != corner_points[rows][order][:-1], True]]
+    found = np.zeros((count, 3))
+    found[corner_points[rows][last]] = unit[rows][last]
+    return found
 
 
 def unsplit_points(corner_vertices: np.ndarray, vertex_normals: np.ndarray) -> ShadingPoints:

@@ -41,7 +41,8 @@ def provably_unoccluded(positions, normals, hull, offset) -> np.ndarray:
 
 def bake_chunk(caster, receiver: Receiver, rows: np.ndarray, settings: BakeSettings):
     """Generator over one chunk (the receiver's `rows`) in either mode; yields rays cast, returns a ChunkResult.
-    Rows against their faces are black without rays, as rows without a surface."""
+    Rows against their faces are black without rays, as rows without a surface, in doubt by the sky Cycles leaves
+    them (core.rules)."""
     normals = receiver.normals[rows]
     against = None if receiver.against is None else receiver.against[rows]
     if against is not None:
@@ -50,7 +51,7 @@ def bake_chunk(caster, receiver: Receiver, rows: np.ndarray, settings: BakeSetti
         count = len(rows)
         result = ChunkResult(unshadowed_transfer(settings.order, normals), np.zeros(count),
                              np.zeros(count, dtype=np.int64), np.zeros(count, dtype=bool), rules.measured(count),
-                             np.array([error_curve.chunk_row(0.0, 0, np.zeros(0))]))
+                             np.zeros(count), np.array([error_curve.chunk_row(0.0, 0, np.zeros(0))]))
     else:
         keys = scheduling.vertex_keys(receiver, rows)
         inward = np.zeros_like(normals) if receiver.inward is None else receiver.inward[rows]
@@ -61,6 +62,11 @@ def bake_chunk(caster, receiver: Receiver, rows: np.ndarray, settings: BakeSetti
                                            steps, clip)
     if against is not None:
         result.rules[against] = rules.AGAINST
+        # Cycles shades such a corner from behind, gathering −N's directions in front of −Ng
+        faces = None if receiver.against_face is None else -receiver.against_face[rows][against]
+        result.rule_error[against] = rules.doubt(settings.order, -receiver.normals[rows][against], faces)
+    # The rules' doubt is no noise more rays take away: it stays in the chunk's error after every round.
+    result.curve[:, 2] += np.square(result.rule_error).sum()
     return result
 
 
@@ -172,7 +178,9 @@ def shadowed_chunk(caster: RayCaster, positions, normals, inward, keys, settings
     decided = rules.measured(count)
     decided[has_surface & facing] = rules.TOUCHING
     decided[in_contact] = rules.LYING
-    return ChunkResult(transfer, error, rays, skipped, decided, np.array(curve), _records(hits, used))
+    doubt = np.zeros(count)
+    doubt[in_contact] = rules.doubt(order, normals[in_contact], touched[in_contact])  # the sky past that surface
+    return ChunkResult(transfer, error, rays, skipped, decided, doubt, np.array(curve), _records(hits, used))
 
 
 def _flat_shadows(caster, origins, normals, order):

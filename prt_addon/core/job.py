@@ -27,6 +27,7 @@ class ReceiverResult:
     rays: np.ndarray        # (V,) int64
     skipped: np.ndarray     # (V,) bool: exact without rays (provably unoccluded, or in contact)
     rules: np.ndarray       # (V,) uint8: the rule that decided each point (core.rules), MEASURED where none did
+    rel_rule_error: np.ndarray  # (V,) what that rule may have got wrong (core.rules.doubt), relative as rel_error
 
 
 @dataclass
@@ -40,7 +41,7 @@ class Summary:
     skipped_vertices: int
     time_s: float
     rays_per_s: float
-    est_rms_rel_error: float
+    est_rms_rel_error: float  # noise and the rules' doubt together (core.rules.estimate)
     est_max_rel_error: float
     workers: int = 1
     target_error: float = 0.0
@@ -62,6 +63,7 @@ class Summary:
     ray_engine: str = ""  # the engine that cast the rays, with its version ("" where none was cast)
     decided_by_rule: dict = field(default_factory=dict)  # points each rule decided (core.rules.counts), non-zero
     error_curve: list = field(default_factory=list)  # core.error_curve.Row after each round, bounces, texel lattices
+    est_rule_rms_rel_error: float = 0.0  # the rules' part of est_rms_rel_error (core.rules.estimate)
 
     def line(self) -> str:
         bounced = (f", {self.bounces} bounces in {self.phases_s.get('bounces_s', 0.0):.2f} s "
@@ -75,10 +77,11 @@ class Summary:
                    f"{self.est_interp_max_rel_error:.4f} ({self.interp_points} points, {self.interp_rays} rays)")
         engine = f" with {self.ray_engine}" if self.ray_engine else ""
         ruled = f"; decided by rule: {rules.words(self.decided_by_rule)}" if self.decided_by_rule else ""
+        doubt = f" (of which decided by rule {self.est_rule_rms_rel_error:.4f})" if self.est_rule_rms_rel_error else ""
         return (f"PRT bake: {self.objects} objects, {self.vertices} vertices{split}, order {self.order} {self.mode}: "
                 f"{self.time_s:.2f} s, {self.rays} rays, {self.rays_per_s / 1e3:.0f} k rays/s{engine}, "
                 f"{self.skipped_vertices} vertices exact without rays, "
-                f"est. RMS rel. error {self.est_rms_rel_error:.4f}, max {self.est_max_rel_error:.4f}{between}"
+                f"est. RMS rel. error {self.est_rms_rel_error:.4f}{doubt}, max {self.est_max_rel_error:.4f}{between}"
                 f"{bounced}{ruled}")
 
     def curve_line(self) -> str:
@@ -120,6 +123,7 @@ class TransferJob(Job):
         self._skipped = [np.zeros(len(r.positions), dtype=bool) for r in receivers]
         self._rules = [rules.measured(len(r.positions)) for r in receivers]
         self._curves = [[] for _ in receivers]  # each chunk's core.error_curve rows, per receiver
+        self._rule_error = [np.zeros(len(r.positions)) for r in receivers]
         self.records = []  # interreflected: HitRecords per chunk, rows already global
         self.albedo = albedo
         self.bounce_report = None
@@ -177,6 +181,7 @@ class TransferJob(Job):
         self._skipped[receiver_index][rows] = result.skipped
         self._rules[receiver_index][rows] = result.rules
         self._curves[receiver_index].append(result.curve)
+        self._rule_error[receiver_index][rows] = result.rule_error
         if result.records is not None:
             solved = self._vertex_offsets[receiver_index] + rows[result.records.vertex]
             self.records.append(interreflect.HitRecords(solved, result.records.triangle, result.records.barycentric,
@@ -213,7 +218,8 @@ class TransferJob(Job):
             if transfer.ndim == 3 and transfer.shape[1] == 1:
                 transfer = transfer[:, 0]  # grey: one channel, stored as (V, n²)
             out.append(ReceiverResult(transfer, self._std_error[index], rel_error,
-                                      self._rays[index], self._skipped[index], self._rules[index]))
+                                      self._rays[index], self._skipped[index], self._rules[index],
+                                      self._rule_error[index] / scale))
         return out
 
     def summary(self, results: list[ReceiverResult], receivers=None, elapsed: float | None = None) -> Summary:
@@ -224,6 +230,7 @@ class TransferJob(Job):
         # A merge's rays were cast by its shards: its rate is over their seconds baking and its own (the bounces).
         baking_s = own_s + self.phase_times.get("shards_rays_s", 0.0)
         rel = np.concatenate([r.rel_error for r in results]) if results else np.zeros(0)
+        doubt = np.concatenate([r.rel_rule_error for r in results]) if results else np.zeros(0)
         rays = int(sum(int(r.rays.sum()) for r in results))
         per_object = {
             receiver.name: {
@@ -231,8 +238,7 @@ class TransferJob(Job):
                 "rays": int(result.rays.sum()),
                 "skipped_vertices": int(result.skipped.sum()),
                 "decided_by_rule": rules.counts(result.rules),
-                "est_rms_rel_error": rms(result.rel_error),
-                "est_max_rel_error": float(result.rel_error.max(initial=0.0)),
+                **rules.estimate(result.rel_error, result.rel_rule_error),
             }
             for receiver, result in zip(receivers, results)
         }
@@ -247,7 +253,7 @@ class TransferJob(Job):
             skipped_vertices=int(sum(int(r.skipped.sum()) for r in results)),
             time_s=own_s + self.phase_times.get("shards_s", 0.0),
             rays_per_s=rays / baking_s if baking_s > 0 else 0.0,
-            est_rms_rel_error=rms(rel), est_max_rel_error=float(rel.max(initial=0.0)),
+            **rules.estimate(rel, doubt),
             workers=self.shards_workers or self.workers, target_error=self.settings.target_error, per_object=per_object,
             phases_s=dict(self.phase_times),
             bounces=self.bounce_report.bounces if self.bounce_report else None,
@@ -275,5 +281,5 @@ class TransferJob(Job):
             bounced_s = (rows[-1].seconds + sum(self.phase_times.get(phase, 0.0) for phase in BOUNCE_PHASES)
                          if index is None else bake_rows[len(rows)].seconds)
             rows = error_curve.then(rows, error_curve.BOUNCES, bounced_s, rows[-1].rays,
-                                    np.concatenate([own[i].rel_error for i in kept]))
+                                    np.concatenate([np.hypot(own[i].rel_error, own[i].rel_rule_error) for i in kept]))
         return rows

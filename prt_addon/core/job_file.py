@@ -10,8 +10,9 @@ import numpy as np
 
 from . import bake, estimator, interreflect, ray_caster, scheduling
 
-OPTIONAL_RECEIVER_ARRAYS = ("inward", "ray_groups", "surface_step", "against", "clip")  # bake.Receiver's, in order
-RESULT_ARRAYS = ("transfer", "std_error", "rays", "skipped", "rules", "curve")  # bake.ChunkResult's but its records, in order
+# bake.Receiver's optional arrays and bake.ChunkResult's but its records, each in order
+OPTIONAL_RECEIVER_ARRAYS = ("inward", "ray_groups", "surface_step", "against", "clip", "against_face")
+RESULT_ARRAYS = ("transfer", "std_error", "rays", "skipped", "rules", "rule_error", "curve")
 
 
 def worker_process_command(python_prefix, job_file, out_file, chunk_indices):

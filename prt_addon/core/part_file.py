@@ -211,13 +211,17 @@ def _chunk(archive, prefix: str, slot: int, rows: int, shape: PartShape, records
     _check((skipped.view(np.uint8) <= 1).all(), f"has values neither true nor false in {name}")
     name, rules = read("rules", decided.DTYPE, (rows,))
     _check((rules <= decided.LARGEST).all(), f"has rule codes outside 0-{decided.LARGEST} in {name}")
+    name, rule_error = read("rule_error", np.float64, (rows,))
+    _check(np.isfinite(rule_error).all() and (rule_error >= 0).all()
+           and (rule_error[rules == decided.MEASURED] == 0).all(),
+           f"has NaN, infinite or negative values, or values at points no rule decided, in {name}")
     name, curve = read("curve", np.float64, (None, len(CHUNK_COLUMNS)), MAX_ROUNDS)
     _check(len(curve) > 0 and np.isfinite(curve).all() and (curve >= 0).all()
            and (np.diff(curve[:, :2], axis=0) >= 0).all() and curve[-1, 1] == rays.sum(),
            f"has an error curve that is not a bake's (rows after each round: seconds and rays growing, the last "
            f"row's rays the chunk's) in {name}")
     hits = _records(read, rows, shape) if records else None
-    return ChunkResult(transfer, std_error, rays, skipped, rules, curve, hits)
+    return ChunkResult(transfer, std_error, rays, skipped, rules, rule_error, curve, hits)
 
 
 def _records(read, rows: int, shape: PartShape) -> HitRecords:

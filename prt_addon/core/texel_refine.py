@@ -60,6 +60,7 @@ class GridState:
         self.rays = np.zeros(count, dtype=np.int64)
         self.skipped = np.zeros(count, dtype=bool)
         self.rules = rules.measured(count)  # of the texels baked; an interpolated one was measured by its neighbours
+        self.rel_rule_error = np.zeros(count)
         self.known = np.zeros(count, dtype=bool)
         self.interpolated = np.zeros(count, dtype=bool)
 
@@ -82,6 +83,7 @@ class GridState:
         self.rays[rows] = result.rays
         self.skipped[rows] = result.skipped
         self.rules[rows] = result.rules
+        self.rel_rule_error[rows] = result.rel_rule_error
         self.known[rows] = True
 
     def interpolate(self, rows: np.ndarray, stride: int, scale: float, target: float) -> np.ndarray:
@@ -269,12 +271,13 @@ class RefiningJob(Job):
         the lattices after the first job gave."""
         summary = self.first.summary(results, self.receivers, self.progress.elapsed)
         if len(self.jobs) > 1:
+            errors = [np.hypot(result.rel_error, result.rel_rule_error) for result in results]  # the estimate's
             summary.error_curve = error_curve.then(summary.error_curve, error_curve.TEXELS, summary.time_s,
-                                                   summary.rays, np.concatenate([r.rel_error for r in results]))
-            for receiver, result in zip(self.receivers, results):
+                                                   summary.rays, np.concatenate(errors))
+            for receiver, error in zip(self.receivers, errors):
                 entry = summary.per_object[receiver.name]
                 entry["error_curve"] = error_curve.then(entry["error_curve"], error_curve.TEXELS, summary.time_s,
-                                                        entry["rays"], result.rel_error)
+                                                        entry["rays"], error)
         return summary
 
     def results(self) -> list:
@@ -283,7 +286,7 @@ class RefiningJob(Job):
         for position, state in self.states.items():
             out[position] = ReceiverResult(state.transfer.astype(np.float32), state.std_error,
                                            state.std_error / self.scale, state.rays, state.skipped,
-                                           state.rules)
+                                           state.rules, state.rel_rule_error)
         return out
 
     def outcome(self) -> list:

@@ -120,6 +120,8 @@ class PRT_PT_bake_info(ActiveMeshPanel, bpy.types.Panel):
         if "ray_engine" in meta:
             column.label(text=f"Cast with {meta['ray_engine']}")
         column.label(text=f"Est. error RMS {meta['est_rms_rel_error']:.4f}, max {meta['est_max_rel_error']:.4f}")
+        if meta.get("est_rule_rms_rel_error"):  # the doubt of the points decided by rule, within that RMS
+            column.label(text=f"  of which decided by rule {meta['est_rule_rms_rel_error']:.4f}")
         for row in meta.get("error_curve", []):  # what more time bought: the bake's error after each round
             column.label(text=f"  after {row['after']}: {row['seconds']:.1f} s, {row['rays']:,} rays, "
                               f"RMS {row['est_rms_rel_error']:.4f}")

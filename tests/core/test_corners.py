@@ -100,3 +100,16 @@ def test_corners_at_a_vertex_of_an_edge_of_three_faces_are_points_of_their_own_f
     assert points.extra_points == 4 and points.split_vertices == 2
     np.testing.assert_array_equal(points.clip[points.corner_points], clip)
     np.testing.assert_array_equal(points.point_vertices[points.corner_points], corner_vertices)
+
+
+def test_a_point_against_its_faces_keeps_the_face_of_its_least_reversed_corner():
+    """Vertex 0's three corners share a normal (up) and are all against their faces: 170°, 120° and 180° from their
+    face normals; the point keeps the 120° corner's unit face normal, whose sky in Cycles is the widest. Vertex 1's
+    corner is not against its face: no face kept."""
+    corner_vertices = np.array([0, 0, 0, 1])
+    normals = np.tile([0.0, 0.0, 1.0], (4, 1))
+    angles = np.radians([170.0, 120.0, 180.0, 10.0])
+    faces = 2.0 * np.stack([np.sin(angles), np.zeros(4), np.cos(angles)], axis=1)  # not unit, as first_triangle_normals
+    points = shading_points(corner_vertices, normals, 2, faces[:, 2] < 0, face_normals=faces)
+    np.testing.assert_array_equal(points.against, [True, False])
+    np.testing.assert_allclose(points.against_face, [[np.sin(angles[1]), 0.0, np.cos(angles[1])], [0.0, 0.0, 0.0]])

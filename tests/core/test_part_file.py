@@ -37,8 +37,10 @@ def chunk(rows: int, seed: int, records: bool) -> ChunkResult:
         weights = random.dirichlet([1, 1, 1], size=4)
         hits = HitRecords(np.array([0, 1, rows - 1, 0]), np.array([0, 4, 2, 2]), weights, np.full(4, 0.125),
                           np.array([0, 1, 2, 3]))
+    codes = np.arange(rows, dtype=np.uint8) % (rules.LARGEST + 1)
     return ChunkResult(random.normal(size=(rows, 4)), random.uniform(0, 0.1, rows), np.full(rows, 8),
-                       np.array([False] * (rows - 1) + [True]), np.arange(rows, dtype=np.uint8) % (rules.LARGEST + 1),
+                       np.array([False] * (rows - 1) + [True]), codes,
+                       np.where(codes != rules.MEASURED, random.uniform(0, 0.1, rows), 0.0),
                        np.array([[0.5, 4.0 * rows, 0.02], [1.0, 8.0 * rows, 0.01]]), hits)
 
 
@@ -158,6 +160,8 @@ def assert_a_bake_could_make(chunks, probes):
         assert result.rays.shape == (rows,) and ((0 <= result.rays) & (result.rays <= 16)).all()
         assert result.skipped.dtype == bool and set(result.skipped.view(np.uint8).tolist()) <= {0, 1}
         assert result.rules.dtype == np.uint8 and result.rules.shape == (rows,) and result.rules.max() <= rules.LARGEST
+        assert result.rule_error.shape == (rows,) and (result.rule_error >= 0).all()
+        assert (result.rule_error[result.rules == rules.MEASURED] == 0).all()
         assert (result.records is not None) == records
         if records:
             hits = result.records
@@ -201,6 +205,7 @@ def test_the_good_part_and_its_deflated_copy_are_read_whole(tmp_path):
     (part_bytes({**GOOD, "curve_1": GOOD["curve_1"][::-1]}), "error curve that is not a bake's"),
     (part_bytes({**GOOD, "curve_0": GOOD["curve_0"] * [1, 2, 1]}), "error curve that is not a bake's"),
     (part_bytes({**GOOD, "curve_0": np.zeros((7, 3))}), "curve_0.npy of shape (7, 3), not (up to 6, 3)"),
+    (part_bytes({**GOOD, "rule_error_0": np.full(3, 0.5)}), "values at points no rule decided, in rule_error_0"),
     (part_bytes({**GOOD, "records_vertex_1": GOOD["records_vertex_1"] + 2}), "outside its chunk's 2 in records_v"),
     (part_bytes({**GOOD, "records_triangle_0": GOOD["records_triangle_0"] + 5}), "outside the scene's 5"),
     (part_bytes({**GOOD, "records_barycentric_0": GOOD["records_barycentric_0"] * 2}), "not summing to 1"),
@@ -217,7 +222,8 @@ def test_the_good_part_and_its_deflated_copy_are_read_whole(tmp_path):
     (GOOD_BYTES[:-30], "is not a readable PRT part file (BadZipFile"),
     (b"", "is not a readable PRT part file (BadZipFile"),
     (part_bytes(GOOD, zipfile.ZIP_BZIP2), "compressed by method 12, not stored or deflated"),
-], ids=["nan", "negative-error", "negative-rays", "rule-code", "curve-seconds-fall", "curve-rays-not-the-chunks", "curve-rows", "hit-vertex", "hit-triangle", "barycentric", "replicate",
+], ids=["nan", "negative-error", "negative-rays", "rule-code", "curve-seconds-fall", "curve-rays-not-the-chunks",
+        "curve-rows", "doubt-unruled", "hit-vertex", "hit-triangle", "barycentric", "replicate",
         "shape", "dtype", "a-billion-shards", "shards-text", "format", "order-float", "samples", "bomb",
         "truncated", "empty", "bzip2"])
 def test_each_hostile_part_is_refused_in_one_line_naming_it_and_the_problem(tmp_path, data, words):

@@ -1,10 +1,11 @@
 """The rule that decided each point travels with its result and is counted in the report: on a floor, a point lying
 on it facing into it (black), a card's edge standing on it at an angle (rays from in front of both), a corner whose
-normal points against its face (black), and an open point that rays measure."""
+normal points against its face (black), and an open point that rays measure. A black rule's doubt, the sky it may
+have left out, joins the estimate."""
 
 import numpy as np
 
-from prt_addon.core import bake, job, rules
+from prt_addon.core import bake, job, lobes, polygons, rules
 
 FLOOR = bake.Occluders(np.array([[-5.0, -5.0, 0.0], [5.0, -5.0, 0.0], [5.0, 5.0, 0.0], [-5.0, 5.0, 0.0]]),
                        np.array([[0, 1, 2], [0, 2, 3]]), np.array([[-5.0, -5.0, 0.0], [5.0, 5.0, 0.0]]),
@@ -50,3 +51,62 @@ def test_unshadowed_bakes_mark_the_points_against_their_faces():
     the_job = job.TransferJob([points()], FLOOR, bake.BakeSettings(order=2, mode="unshadowed"))
     (result,) = the_job.run()
     assert result.rules.tolist() == [rules.MEASURED, rules.MEASURED, rules.AGAINST, rules.MEASURED]
+
+
+def against_plane(tilts_deg) -> bake.Receiver:
+    """Points of a plane facing up (+z) under an open sky, high above the floor, each custom normal tilted
+    `tilt` degrees from the face normal about y: past 90° it points against its face."""
+    tilts = np.radians(tilts_deg)
+    count = len(tilts)
+    normals = np.stack([np.sin(tilts), np.zeros(count), np.cos(tilts)], axis=1)
+    positions = np.stack([np.arange(count) * 0.5, np.zeros(count), np.full(count, 3.0)], axis=1)
+    against = normals[:, 2] < 0
+    return bake.Receiver("plane", positions, normals, bake.Receiver.key_for("plane"),
+                         np.tile([1.0, 0.0, 0.0], (count, 1)), against=against,
+                         against_face=np.where(against[:, None], [0.0, 0.0, 1.0], 0.0))
+
+
+def test_a_normal_against_its_face_adds_the_sky_cycles_leaves_it_to_the_estimate():
+    # Order 1 (the DC term alone): a corner whose normal is 120° from its face normal gathers, in Cycles, −N's
+    # hemisphere in front of −Ng: (1 + N·Ng)/2 = (1 − 1/2)/2 = 1/4 of the open sky's cosine-weighted light, which the
+    # rule sets black: its doubt relative to the unshadowed transfer is 1/4. Exactly reversed (180°) it gathers
+    # none. The open point (0°) sees the whole sky without a ray: exact.
+    plane = against_plane([120.0, 180.0, 0.0, 120.0])
+    the_job = job.TransferJob([plane], FLOOR, bake.BakeSettings(order=1, samples=16))
+    (result,) = the_job.run()
+    assert result.rules.tolist() == [rules.AGAINST, rules.AGAINST, rules.MEASURED, rules.AGAINST]
+    np.testing.assert_allclose(result.rel_rule_error, [0.25, 0.0, 0.0, 0.25], atol=1e-12)
+    assert not result.rel_error.any() and not result.transfer[[0, 1, 3]].any()
+    summary = the_job.summary([result])
+    by_hand = np.sqrt((0.25 ** 2 + 0.25 ** 2) / 4)  # the RMS over the four points
+    assert abs(summary.est_rms_rel_error - by_hand) < 1e-12 and abs(summary.est_rule_rms_rel_error - by_hand) < 1e-12
+    assert abs(summary.est_max_rel_error - 0.25) < 1e-12
+    assert summary.per_object["plane"]["est_rule_rms_rel_error"] == summary.est_rule_rms_rel_error
+    assert f"est. RMS rel. error {by_hand:.4f} (of which decided by rule {by_hand:.4f})" in summary.line()
+
+
+def test_the_doubt_and_the_noise_add_in_quadrature_and_a_higher_order_doubt_is_its_lunes_norm():
+    order = 3
+    the_job = job.TransferJob([points()], FLOOR, bake.BakeSettings(order=order, samples=32))
+    (result,) = the_job.run()
+    # the against point's face is not known (no against_face): the widest lune a rule allows, a plane through its
+    # normal; the point lying flat on the floor sees nothing past it
+    widest = polygons.lune_transfer(order, np.array([[0.0, 0.0, 1.0]]), np.array([[1.0, 0.0, 0.0]]))
+    doubt = np.linalg.norm(widest) / lobes.unshadowed_norm(order)
+    np.testing.assert_allclose(result.rel_rule_error, [0.0, 0.0, doubt, 0.0], rtol=1e-12)
+    summary = the_job.summary([result])
+    total = np.sqrt(np.mean(result.rel_error ** 2 + result.rel_rule_error ** 2))
+    assert abs(summary.est_rms_rel_error - total) < 1e-12 and summary.est_rms_rel_error > np.sqrt(
+        np.mean(result.rel_error ** 2))
+
+
+def test_a_point_lying_a_few_degrees_off_the_surface_doubts_the_sky_past_it():
+    # A face lying on the floor, its shading normal 5° off straight down (within the 8° lying takes): black, in doubt
+    # by the lune past the floor, (1 + n·n_s)/2 of its sky
+    tilt = np.radians(5.0)
+    lying = bake.Receiver("lying", np.zeros((1, 3)), np.array([[np.sin(tilt), 0.0, -np.cos(tilt)]]), 7,
+                          np.array([[np.cos(tilt), 0.0, np.sin(tilt)]]), surface_step=np.array([[1.0, 0.0, 0.0]]))
+    the_job = job.TransferJob([lying], FLOOR, bake.BakeSettings(order=1, samples=16))
+    (result,) = the_job.run()
+    assert result.rules.tolist() == [rules.LYING] and not result.transfer.any()
+    np.testing.assert_allclose(result.rel_rule_error, [(1 - np.cos(tilt)) / 2], rtol=1e-9)

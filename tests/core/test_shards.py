@@ -50,11 +50,11 @@ def test_shard_of_reads_k_of_n_from_1_to_n():
 
 def test_a_part_is_written_atomically_into_a_new_folder_with_the_umasks_mode_and_reads_back(tmp_path):
     result = ChunkResult(np.arange(18.0).reshape(2, 9), np.ones(2), np.array([4, 5]), np.array([False, True]),
-                         np.array([0, rules.LYING], np.uint8), np.array([[0.25, 9.0, 2.0]]))
+                         np.array([0, rules.LYING], np.uint8), np.array([0.0, 0.01]), np.array([[0.25, 9.0, 2.0]]))
     path = tmp_path / "new" / "folder" / "part.npz"
     started = shards.Stopwatch(time.perf_counter() - 10.0, shards.cpu_seconds() - 2.0)  # a command 10 s ago
     probe = ChunkResult(np.full((1, 9), 7.0), np.zeros(1), np.array([9]), np.array([False]), rules.measured(1),
-                        np.array([[0.5, 9.0, 0.0]]))
+                        np.zeros(1), np.array([[0.5, 9.0, 0.0]]))
     written = info(2, rays_s=1.5, workers=2)
     umask = os.umask(0o027)
     try:
@@ -143,7 +143,7 @@ def test_a_merges_rays_per_second_and_workers_are_its_shards():
     now = [100.0]
     merge.progress = Progress("PRT bake", clock=lambda: now[0])  # the merge's own seconds, told by this clock
     parts += [(index, ChunkResult(np.zeros((len(rows), 4)), np.zeros(len(rows)), np.full(len(rows), 64),
-                                  np.zeros(len(rows), bool), rules.measured(len(rows)),
+                                  np.zeros(len(rows), bool), rules.measured(len(rows)), np.zeros(len(rows)),
                                   np.array([[1.0, 64.0 * len(rows), 0.0]])))
               for index, (_, rows) in enumerate(merge.chunks)]
     merge.run()

@@ -101,7 +101,7 @@ class ExactJob:
     def results(self):
         return [ReceiverResult(self.field(r.positions), np.zeros(len(r.positions)), np.zeros(len(r.positions)),
                                np.ones(len(r.positions), dtype=np.int64), np.zeros(len(r.positions), dtype=bool),
-                               rules.measured(len(r.positions)))
+                               rules.measured(len(r.positions)), np.zeros(len(r.positions)))
                 for r in self.receivers]
 
 
