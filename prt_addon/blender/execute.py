@@ -243,7 +243,7 @@ def merged_summary(outcomes: list, time_s: float) -> job.Summary:
                   for name in ("rel_error", "rel_rule_error"))
     merged = job.Summary(**{**vars(first), "per_object": {}, "phases_s": {}})
     for name in ("objects", "vertices", "points", "rays", "skipped_vertices", "split_vertices", "interp_points",
-                 "interp_rays"):
+                 "interp_rays", "inside_another_part"):
         setattr(merged, name, sum(getattr(summary, name) for summary in summaries))
     for summary in summaries:
         merged.per_object.update(summary.per_object)

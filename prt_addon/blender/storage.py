@@ -14,7 +14,8 @@ Stored layout (documented in the README; bump core.bake.CONVENTION_VERSION when 
 - Mesh custom property `prt` (a group): order, mode, samples, rays, convention, domain, vertex_count,
   corner_count, points, split_vertices, est_rms_rel_error, est_max_rel_error (noise and the rules' doubt),
   est_rule_rms_rel_error (the rules' part, core.rules.estimate), time_s, date, bake_id, seed,
-  target_error, skipped_vertices, decided_by_rule (a group: points per rule, core.rules.counts), channels (and
+  target_error, skipped_vertices, decided_by_rule (a group: points per rule, core.rules.counts),
+  inside_another_part (points measured black inside another part, core.job.TransferJob), channels (and
   bounces for interreflected bakes), est_interp_rms_rel_error, est_interp_max_rel_error, interp_points,
   ray_engine (the engine that cast the rays, with its version; none for an unshadowed bake), error_curve (a list of
   groups: after, seconds, rays, squared, points, est_rms_rel_error; core.error_curve) (written by blender.store),

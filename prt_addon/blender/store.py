@@ -58,6 +58,7 @@ def _store_one(plan: BakePlan, results: BakeResults) -> BakeReport:
             mixed.append(name)
     for name, layout, result in zip(results.names, results.layouts, results.results):
         fields = {"time_s": summary.time_s, fingerprint.FINGERPRINT_KEY: plan.request.fingerprints[name],
+                  "inside_another_part": summary.per_object[name].get("inside_another_part", 0),
                   **{key: summary.per_object[name][key] for key in INTERPOLATION_KEYS
                      if key in summary.per_object[name]}}
         fields["error_curve"] = [asdict(row) for row in summary.per_object[name]["error_curve"]]

@@ -10,13 +10,15 @@ import time
 
 import numpy as np
 
-from . import bake, error_curve, interreflect, lobes, rules, scheduling
+from . import bake, error_curve, interreflect, lobes, mesh_faults, rules, scheduling
 from .executors import InProcess
 from .progress import Job, Progress
 from .statistics import rms
 
 
 BOUNCE_PHASES = ("gather_setup_s", "bounces_s", "bounce_error_s")  # phase_times after the rays, bouncing
+# A point whose every coefficient is below this fraction of the unshadowed transfer's norm was measured black.
+BLACK = 1e-4
 
 
 @dataclass
@@ -64,6 +66,7 @@ class Summary:
     decided_by_rule: dict = field(default_factory=dict)  # points each rule decided (core.rules.counts), non-zero
     error_curve: list = field(default_factory=list)  # core.error_curve.Row after each round, bounces, texel lattices
     est_rule_rms_rel_error: float = 0.0  # the rules' part of est_rms_rel_error (core.rules.estimate)
+    inside_another_part: int = 0  # points the rays found black inside another part (TransferJob.inside_another_part)
 
     def line(self) -> str:
         bounced = (f", {self.bounces} bounces in {self.phases_s.get('bounces_s', 0.0):.2f} s "
@@ -78,6 +81,8 @@ class Summary:
         engine = f" with {self.ray_engine}" if self.ray_engine else ""
         ruled = f"; decided by rule: {rules.words(self.decided_by_rule)}" if self.decided_by_rule else ""
         doubt = f" (of which decided by rule {self.est_rule_rms_rel_error:.4f})" if self.est_rule_rms_rel_error else ""
+        if self.inside_another_part:
+            ruled += f"; {self.inside_another_part} points inside another part (black)"
         return (f"PRT bake: {self.objects} objects, {self.vertices} vertices{split}, order {self.order} {self.mode}: "
                 f"{self.time_s:.2f} s, {self.rays} rays, {self.rays_per_s / 1e3:.0f} k rays/s{engine}, "
                 f"{self.skipped_vertices} vertices exact without rays, "
@@ -232,6 +237,7 @@ class TransferJob(Job):
         rel = np.concatenate([r.rel_error for r in results]) if results else np.zeros(0)
         doubt = np.concatenate([r.rel_rule_error for r in results]) if results else np.zeros(0)
         rays = int(sum(int(r.rays.sum()) for r in results))
+        inside = self.inside_another_part(receivers, results)
         per_object = {
             receiver.name: {
                 "vertices": len(receiver.positions),
@@ -239,8 +245,9 @@ class TransferJob(Job):
                 "skipped_vertices": int(result.skipped.sum()),
                 "decided_by_rule": rules.counts(result.rules),
                 **rules.estimate(result.rel_error, result.rel_rule_error),
+                "inside_another_part": count,
             }
-            for receiver, result in zip(receivers, results)
+            for receiver, result, count in zip(receivers, results, inside)
         }
         own, rays_s = self.results(), self.phase_times.get("rays_s", own_s) + self.phase_times.get("shards_rays_s", 0.0)
         curve = self.error_rows(rays_s, own, len(results))
@@ -262,7 +269,22 @@ class TransferJob(Job):
             bounces_converged=self.bounce_report.converged if self.bounce_report else True,
             albedo_clamped=bool(self.bounce_report and self.bounce_report.albedo_clamped),
             decided_by_rule=rules.total(entry["decided_by_rule"] for entry in per_object.values()),
-            error_curve=curve)
+            error_curve=curve, inside_another_part=sum(inside))
+
+    def inside_another_part(self, receivers, results) -> list[int]:
+        """Per receiver, how many of its points that rays measured black lie inside another part of the occluders
+        (core.mesh_faults.points_inside): black in Cycles too, whose rays meet that part whichever way they leave,
+        and named in the report so an artist sees them. Only the black points are tested, once per bake."""
+        if self.occluders is None or not len(self.occluders.triangles):
+            return [0] * len(results)
+        scale = lobes.unshadowed_norm(self.settings.order)
+        black = [(r.rules == rules.MEASURED) & (np.abs(s.normals).sum(1) > 0)
+                 & (np.abs(r.transfer.reshape(len(r.rules), -1)).max(1) <= BLACK * scale)
+                 for s, r in zip(receivers, results)]
+        points = np.concatenate([s.positions[mask] for s, mask in zip(receivers, black)]) if results else []
+        inside = mesh_faults.points_inside(np.reshape(points, (-1, 3)), self.occluders.vertices,
+                                           self.occluders.triangles)
+        return [int(part.sum()) for part in np.split(inside, np.cumsum([mask.sum() for mask in black])[:-1])]
 
     def error_rows(self, rays_s: float, own: list, stored: int, index=None, bake_rows=None) -> list:
         """The error against time (core.error_curve) of the `stored` first receivers (the others only bounce

@@ -9,7 +9,8 @@ interior strictly (its ends on opposite sides of the plane, the crossing inside 
 only touch (a box standing on another, a face on a face) do not cross. Inside: a part whose bounding box lies in another's is inside it when its sampled vertices'
 generalised winding numbers with respect to the other (the solid angle its triangles subtend, over 4π) are none
 below 1/4 and some above 3/4: a point on the surface has 1/2 or less, so parts that touch from inside are inside,
-parts that touch from outside are not.
+parts that touch from outside are not. A bake's points inside another part (points_inside) are judged alike, one by
+one: Cycles' rays meet that part whichever way they leave, and so do the bake's, which find them black.
 """
 
 import numpy as np
@@ -18,6 +19,8 @@ SLIVER_RATIO = 0.01      # a sliver's smallest height is below this fraction of 
 DEGENERATE_RATIO = 1e-7  # a zero-area face's smallest height is below this fraction of its longest edge (float32)
 PAIRS_AT_ONCE = 1 << 18   # triangle pairs tested exactly at once: bounded memory
 INSIDE_SAMPLES = 16       # vertices of a part whose winding numbers decide whether it is inside another
+INSIDE_WINDING = 0.75     # a point is inside a part when its winding number's magnitude is above this
+WINDING_TERMS = 1 << 20   # point-triangle solid angles evaluated at once: bounded memory
 STRICT = 1e-9             # of the scene's size: how far from a plane or an edge a crossing must be
 
 
@@ -85,6 +88,36 @@ def inside_parts(positions: np.ndarray, triangles: np.ndarray, parts: np.ndarray
         if (winding >= 0.25).all() and (winding > 0.75).any():
             found.append((part, around))
     return np.array(found, dtype=np.int64).reshape(-1, 2)
+
+
+def points_inside(points: np.ndarray, positions: np.ndarray, triangles: np.ndarray) -> np.ndarray:
+    """(n,) bool: each point (n, 3) lies inside a part of `triangles` (over `positions`) that has no vertex at the
+    point, the part it is on being its own surface: its winding number with respect to that part is above
+    INSIDE_WINDING in magnitude (a point on a surface has 1/2 or less, one inside a closed part 1). Only the parts
+    whose bounding box holds a point are tested for it."""
+    inside = np.zeros(len(points), dtype=bool)
+    if not len(points) or not len(triangles):
+        return inside
+    parts = parts_of(triangles, len(positions))
+    order = np.argsort(parts, kind="stable")
+    ends = np.cumsum(np.bincount(parts))
+    keys = _row_keys(points)
+    for first, end in zip(np.r_[0, ends[:-1]], ends):
+        own = triangles[order[first:end]]
+        corners = positions[own]
+        low, high = corners.min(axis=(0, 1)), corners.max(axis=(0, 1))
+        rows = np.flatnonzero(~inside & (points >= low).all(1) & (points <= high).all(1))
+        rows = rows[~np.isin(keys[rows], _row_keys(positions[np.unique(own)]))]
+        step = max(1, WINDING_TERMS // len(own))
+        for batch in np.split(rows, np.arange(step, len(rows), step)):
+            inside[batch[np.abs(winding_numbers(points[batch], corners)) > INSIDE_WINDING]] = True
+    return inside
+
+
+def _row_keys(rows: np.ndarray) -> np.ndarray:
+    """Each row (n, 3) as one bytes value, so equal positions compare equal (-0.0 made 0.0)."""
+    rows = np.ascontiguousarray(rows, dtype=np.float64) + 0.0
+    return rows.view(np.dtype((np.void, 24))).ravel()
 
 
 def winding_numbers(points: np.ndarray, corners: np.ndarray) -> np.ndarray:

@@ -137,6 +137,8 @@ class PRT_PT_bake_info(ActiveMeshPanel, bpy.types.Panel):
             for code, key in rules.KEYS.items():
                 if decided.get(key):
                     column.label(text=f"  {decided[key]} {rules.WORDS[code]}")
+        if meta.get("inside_another_part"):  # black by rays, as in Cycles: a part hidden in another, or misplaced
+            column.label(text=f"{meta['inside_another_part']} points inside another part (black)", icon="ERROR")
         column.label(text=f"Baked {meta['date']}")
 
 

@@ -67,3 +67,14 @@ def test_slivers_and_zero_area_triangles_by_their_smallest_height():
     degenerate, sliver = mesh_faults.thin_triangles(positions, triangles)
     assert degenerate.tolist() == [False, False, False, True, True]  # collinear; two corners at one place
     assert sliver.tolist() == [False, True, False, False, False]     # height 0.005 and 0.02 of a unit edge
+
+
+
+def test_points_inside_another_closed_part_are_found_and_points_on_their_own_part_are_not():
+    """A 2-unit box around a 0.8 one: the inner box's corners (its own vertices) are inside the outer box, the outer
+    box's corners are on their own part and outside the inner one; a point beside both is inside neither, one
+    between the two boxes is inside the outer one."""
+    positions, triangles, *_ = boxes(((-1, -1, -1), 2), ((-0.2, -0.4, -0.4), 0.8))
+    points = np.concatenate([positions[8:], positions[:8], [[3.0, 0.0, 0.0], [0.0, 0.8, 0.0]]])
+    found = mesh_faults.points_inside(points, positions, triangles)
+    np.testing.assert_array_equal(found, [True] * 8 + [False] * 8 + [False, True])

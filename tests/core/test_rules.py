@@ -110,3 +110,25 @@ def test_a_point_lying_a_few_degrees_off_the_surface_doubts_the_sky_past_it():
     (result,) = the_job.run()
     assert result.rules.tolist() == [rules.LYING] and not result.transfer.any()
     np.testing.assert_allclose(result.rel_rule_error, [(1 - np.cos(tilt)) / 2], rtol=1e-9)
+
+
+def test_points_inside_another_part_are_measured_black_and_counted_apart_from_the_rules():
+    """A 0.8 cube inside a 2-unit one (both closed, wound outward): every ray from the inner cube's corners meets
+    the outer cube from inside, so the rays find them black, no rule decides them, and the report counts them
+    inside another part. The outer cube's corners are on their own part: not counted."""
+    cube = [(x, y, z) for z in (-1, 1) for y in (-1, 1) for x in (-1, 1)]
+    quads = [(0, 2, 3, 1), (4, 5, 7, 6), (0, 1, 5, 4), (2, 6, 7, 3), (0, 4, 6, 2), (1, 3, 7, 5)]
+    triangles = np.array([t for a, b, c, d in quads for t in ((a, b, c), (a, c, d))])
+    outer, inner = np.array(cube, float), np.array(cube, float) * 0.4 + [0.2, 0.0, 0.0]
+    vertices = np.concatenate([inner, outer])
+    occluders = bake.Occluders(vertices, np.concatenate([triangles, triangles + 8]), vertices, engine="reference")
+    receivers = [bake.Receiver(name, positions, normals, bake.Receiver.key_for(name), -normals)
+                 for name, positions, normals in (("inner", inner, np.array(cube) / np.sqrt(3)),
+                                                  ("outer", outer, np.array(cube) / np.sqrt(3)))]
+    the_job = job.TransferJob(receivers, occluders, bake.BakeSettings(order=2, samples=16))
+    results = the_job.run()
+    assert not results[0].transfer.any() and not results[0].rules.any() and results[1].transfer[:, 0].min() > 0.1
+    summary = the_job.summary(results)
+    assert summary.inside_another_part == 8 and summary.per_object["inner"]["inside_another_part"] == 8
+    assert summary.per_object["outer"]["inside_another_part"] == 0 and summary.decided_by_rule == {}
+    assert "; 8 points inside another part (black)" in summary.line()
