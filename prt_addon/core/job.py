@@ -80,7 +80,8 @@ class Summary:
                    f"{self.est_interp_max_rel_error:.4f} ({self.interp_points} points, {self.interp_rays} rays)")
         engine = f" with {self.ray_engine}" if self.ray_engine else ""
         ruled = f"; decided by rule: {rules.words(self.decided_by_rule)}" if self.decided_by_rule else ""
-        doubt = f" (of which decided by rule {self.est_rule_rms_rel_error:.4f})" if self.est_rule_rms_rel_error else ""
+        doubt = (f" (of which decided by rule {self.est_rule_rms_rel_error:.4f})"
+                 if round(self.est_rule_rms_rel_error, 4) else "")  # as printed: an exactly reversed normal has none
         if self.inside_another_part:
             ruled += f"; {self.inside_another_part} points inside another part (black)"
         return (f"PRT bake: {self.objects} objects, {self.vertices} vertices{split}, order {self.order} {self.mode}: "
