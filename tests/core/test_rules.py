@@ -83,6 +83,8 @@ def test_a_normal_against_its_face_adds_the_sky_cycles_leaves_it_to_the_estimate
     assert abs(summary.est_max_rel_error - 0.25) < 1e-12
     assert summary.per_object["plane"]["est_rule_rms_rel_error"] == summary.est_rule_rms_rel_error
     assert f"est. RMS rel. error {by_hand:.4f} (of which decided by rule {by_hand:.4f})" in summary.line()
+    # more rays take no doubt away: the error against time ends at the same estimate
+    assert abs(summary.error_curve[-1].est_rms_rel_error - by_hand) < 1e-12
 
 
 def test_the_doubt_and_the_noise_add_in_quadrature_and_a_higher_order_doubt_is_its_lunes_norm():
