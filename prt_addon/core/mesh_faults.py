@@ -93,12 +93,14 @@ def inside_parts(positions: np.ndarray, triangles: np.ndarray, parts: np.ndarray
 def points_inside(points: np.ndarray, positions: np.ndarray, triangles: np.ndarray) -> np.ndarray:
     """(n,) bool: each point (n, 3) lies inside a part of `triangles` (over `positions`) that has no vertex at the
     point, the part it is on being its own surface: its winding number with respect to that part is above
-    INSIDE_WINDING in magnitude (a point on a surface has 1/2 or less, one inside a closed part 1). Only the parts
-    whose bounding box holds a point are tested for it."""
+    INSIDE_WINDING in magnitude (a point on a surface has 1/2 or less, one inside a closed part 1). Vertices at one
+    position join their triangles into one part: a bake's occluders repeat a split vertex per point (a flat-shaded
+    box's every face apart). Only the parts whose bounding box holds a point are tested for it."""
     inside = np.zeros(len(points), dtype=bool)
     if not len(points) or not len(triangles):
         return inside
-    parts = parts_of(triangles, len(positions))
+    _, welded = np.unique(_row_keys(positions), return_inverse=True)
+    parts = parts_of(welded.ravel()[triangles], len(positions))
     order = np.argsort(parts, kind="stable")
     ends = np.cumsum(np.bincount(parts))
     keys = _row_keys(points)

@@ -78,3 +78,7 @@ def test_points_inside_another_closed_part_are_found_and_points_on_their_own_par
     points = np.concatenate([positions[8:], positions[:8], [[3.0, 0.0, 0.0], [0.0, 0.8, 0.0]]])
     found = mesh_faults.points_inside(points, positions, triangles)
     np.testing.assert_array_equal(found, [True] * 8 + [False] * 8 + [False, True])
+    # each triangle with vertices of its own, as a flat-shaded bake's occluders repeat its split vertices: the same
+    split = positions[triangles].reshape(-1, 3)
+    found = mesh_faults.points_inside(points, split, np.arange(len(split)).reshape(-1, 3))
+    np.testing.assert_array_equal(found, [True] * 8 + [False] * 8 + [False, True])
