@@ -16,6 +16,7 @@ import pytest
 
 from browser import chromium, open_viewer, viewer_state
 from conftest import ROOT, add_light, run_cli
+from pictures import read_png, rms_over_objects, shot
 from core.rotations import matrix_from_euler_zyz
 from prt_addon.blender import lights, sample_scenes
 from prt_addon.blender.relighting import Relighter
@@ -305,16 +306,6 @@ def test_the_shaders_light_uniform_meets_the_packed_transfer_as_the_add_on_shade
 
 
 # -- the viewer ----------------------------------------------------------------------------------------------
-def read_png(path) -> np.ndarray:
-    """(H, W, 4) floats, top row first, as Blender reads the PNG."""
-    image = bpy.data.images.load(str(path))
-    width, height = image.size
-    pixels = np.empty(width * height * 4, dtype=np.float32)
-    image.pixels.foreach_get(pixels)
-    bpy.data.images.remove(image)
-    return pixels.reshape(height, width, 4)[::-1]
-
-
 def blender_render(blend, path, theta, phi):
     """Workbench showing the PRT colour (no albedo) under the first SH light aimed at θ, φ; transparent film, so
     alpha marks the objects; no dither."""
@@ -326,23 +317,6 @@ def blender_render(blend, path, theta, phi):
     scene.render.film_transparent = True
     scene.render.dither_intensity = 0.0
     render(scene, str(path), "WORKBENCH", resolution=SIZE)
-    return read_png(path)
-
-
-def rms_over_objects(reference, shot) -> float:
-    """RMS of the RGB difference over the pixels the reference covers, less their outer ring (anti-aliased edges
-    against the background differ between any two rasterisers)."""
-    inside = reference[..., 3] > 0.99
-    covered = inside.copy()
-    for dy in (-1, 0, 1):
-        for dx in (-1, 0, 1):
-            covered &= np.roll(np.roll(inside, dy, axis=0), dx, axis=1)
-    difference = reference[..., :3][covered] - shot[..., :3][covered]
-    return float(np.sqrt(np.mean(difference ** 2)))
-
-
-def shot(page, path) -> np.ndarray:
-    page.screenshot(path=str(path))
     return read_png(path)
 
 
