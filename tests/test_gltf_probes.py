@@ -167,6 +167,25 @@ def test_the_file_alone_gives_the_dynamic_objects_colours_as_blenders_display(pr
     assert shown.mean() < 0.7 * unlit.mean()  # in the wall's shadow: the probes matter
 
 
+def suzannes_colours(path) -> np.ndarray:
+    document, binary = read_glb(path)
+    mesh = next(mesh for mesh in document["meshes"] if mesh["name"] == "Suzanne")
+    return accessor(document, binary, mesh["primitives"][0]["attributes"]["COLOR_0"])[:, :3]
+
+
+def test_a_probe_volume_of_another_layout_is_left_out_with_a_note(probe_file, probe_glb, prt, tmp_path):
+    """As the display leaves it out (blender.probe_volumes.read): the dynamic object is then lit by the distant
+    light, in the file as in Blender."""
+    bpy.ops.wm.open_mainfile(filepath=str(probe_file))
+    bpy.data.objects["PRT Probe Volume"][probe_volumes.METADATA_KEY]["layout"] = 99
+    done = prt.gltf.export(bpy.context.scene, str(tmp_path / "stale.glb"), "web")
+    assert (done["probe_volumes"], done["dynamic"]) == ([], ["Suzanne"])
+    assert "probe volume 'PRT Probe Volume' was baked with layout version 99; rebake it: not exported" in done["notes"]
+    document, binary = read_glb(tmp_path / "stale.glb")
+    assert "probe_volumes" not in document["scenes"][0]["extras"]["prt"]
+    assert suzannes_colours(tmp_path / "stale.glb").mean() > 1.3 * suzannes_colours(probe_glb).mean()  # no shadow
+
+
 def test_gltf_validator_finds_no_error_or_warning(probe_glb):
     issues = validator_issues(probe_glb)
     assert (issues["numErrors"], issues["numWarnings"]) == (0, 0), issues["messages"]
