@@ -84,8 +84,8 @@ export class Mover {
     const object = this.moving;
     if (!object) return null;
     const volume = this.lit.get(object.node);
-    return `Moving ${object.name} (Tab: ${this.active + 1} of ${this.objects.length}): arrows, PgUp/PgDn move, ` +
-      `[ ] turn · lit by ${volume ? `probe volume ${volume.name}` : "the distant light"}`;
+    return `Moving ${object.name} (Tab ${this.active + 1}/${this.objects.length}; arrows, PgUp/PgDn, [ ]) · ` +
+      `lit by ${volume ? `the probes of ${volume.name}` : "the distant light"}`;
   }
 
   state() {
