@@ -9,7 +9,8 @@
 #   - this checkout as a package of that environment (pyproject.toml, editable: the environment runs the checkout as
 #     it is), which gives the `prt` command and `python -m prt_addon` in any folder;
 #   - the sample scenes, built in that Blender's file format (sample_scenes/make_scenes.py);
-#   - the browser viewer's three.js (npm install in viewer/) and Debian's chromium, which its tests drive;
+#   - the browser viewer's three.js and, for the tests, Khronos' glTF validator (npm install in viewer/), and
+#     Debian's chromium, which its tests drive;
 #   - `prt demo`, which writes a PNG and a JSON report into demo_output/.
 # Options:
 #   --blender X.Y   that Blender instead (one of the supported versions below)

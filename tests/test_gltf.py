@@ -16,6 +16,8 @@ import pytest
 
 from browser import chromium, open_viewer, viewer_state
 from conftest import ROOT, add_light, run_cli
+from gltf_files import accessor, light_from_extras, read_glb, validator_issues
+from pictures import read_png, rms_over_objects, shot
 from core.rotations import matrix_from_euler_zyz
 from prt_addon.blender import lights, sample_scenes
 from prt_addon.blender.relighting import Relighter
@@ -23,7 +25,7 @@ from prt_addon.blender.render import render
 from prt_addon.blender.scene_bake import SceneBake
 from prt_addon.commands.demo import save_baked_demo
 from prt_addon.commands.view import VIEWER, address, start_server, stop_server
-from prt_addon.core import bake, glb, gltf_pack, lobes, rotation, sh, shading
+from prt_addon.core import bake, gltf_pack, lobes, rotation, sh, shading
 from prt_addon.core import lights as core_lights
 
 SIZE = (320, 240)
@@ -104,25 +106,6 @@ def demo_url(demo_glb):
 
 
 # -- the file ------------------------------------------------------------------------------------------------
-def read_glb(path):
-    with open(path, "rb") as file:
-        return glb.read(file.read())
-
-
-def accessor(document, binary, index) -> np.ndarray:
-    """A float or normalised unsigned short accessor's values as floats, (count, components)."""
-    spec = document["accessors"][index]
-    kind = {5126: np.float32, 5123: np.uint16}[spec["componentType"]]
-    size = np.dtype(kind).itemsize
-    view = document["bufferViews"][spec["bufferView"]]
-    components = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4}[spec["type"]]
-    start = view.get("byteOffset", 0) + spec.get("byteOffset", 0)
-    stride = view.get("byteStride", size * components) // size
-    values = np.frombuffer(bytes(binary[start: start + size * stride * spec["count"]]), dtype=kind)
-    values = values.reshape(spec["count"], stride)[:, :components].astype(np.float64)
-    return values / 65535 if spec.get("normalized") else values
-
-
 def meshes(path):
     """{name: (attribute arrays of the first primitive, extras.prt)} and the scene's extras.prt."""
     document, binary = read_glb(path)
@@ -132,20 +115,6 @@ def meshes(path):
                       for name, index in mesh["primitives"][0]["attributes"].items()}
         found[mesh["name"]] = (attributes, mesh["extras"]["prt"])
     return found, document["scenes"][document.get("scene", 0)]["extras"]["prt"], document
-
-
-def light_from_extras(extras, order) -> np.ndarray:
-    """(3, n²) in glTF's frame, built as a viewer builds it: suns' zonal lobes along their directions, the rest
-    as given, then the window."""
-    light = np.zeros((3, order * order))
-    for entry in extras["lights"]:
-        if entry["kind"] == "sun":
-            lobe = rotation.zonal_to_sh(np.array(entry["zonal"][:order]), entry["direction"])
-            light += np.outer(entry["rgb"], lobe)
-        else:
-            light += np.array(entry["coefficients"])[:, : order * order]
-    strength = extras.get("window_strengths", {}).get(str(order), 1.0)
-    return lobes.apply_window(light, lobes.window(order, extras["window"], strength))
 
 
 def test_exported_transfer_and_lights_shade_to_color_0(demo_glb):
@@ -211,6 +180,10 @@ def snapshot() -> dict:
                    for mesh in bpy.data.meshes},
         "parents": {ob.name: (ob.parent, tuple(map(tuple, ob.matrix_world))) for ob in bpy.data.objects},
     }
+
+
+def test_gltf_validator_finds_no_error_in_the_exported_demo(demo_glb):
+    assert validator_issues(demo_glb)["numErrors"] == 0
 
 
 def test_godot_profile_puts_order_four_in_custom0_to_3(demo_file, tmp_path):
@@ -305,16 +278,6 @@ def test_the_shaders_light_uniform_meets_the_packed_transfer_as_the_add_on_shade
 
 
 # -- the viewer ----------------------------------------------------------------------------------------------
-def read_png(path) -> np.ndarray:
-    """(H, W, 4) floats, top row first, as Blender reads the PNG."""
-    image = bpy.data.images.load(str(path))
-    width, height = image.size
-    pixels = np.empty(width * height * 4, dtype=np.float32)
-    image.pixels.foreach_get(pixels)
-    bpy.data.images.remove(image)
-    return pixels.reshape(height, width, 4)[::-1]
-
-
 def blender_render(blend, path, theta, phi):
     """Workbench showing the PRT colour (no albedo) under the first SH light aimed at θ, φ; transparent film, so
     alpha marks the objects; no dither."""
@@ -326,23 +289,6 @@ def blender_render(blend, path, theta, phi):
     scene.render.film_transparent = True
     scene.render.dither_intensity = 0.0
     render(scene, str(path), "WORKBENCH", resolution=SIZE)
-    return read_png(path)
-
-
-def rms_over_objects(reference, shot) -> float:
-    """RMS of the RGB difference over the pixels the reference covers, less their outer ring (anti-aliased edges
-    against the background differ between any two rasterisers)."""
-    inside = reference[..., 3] > 0.99
-    covered = inside.copy()
-    for dy in (-1, 0, 1):
-        for dx in (-1, 0, 1):
-            covered &= np.roll(np.roll(inside, dy, axis=0), dx, axis=1)
-    difference = reference[..., :3][covered] - shot[..., :3][covered]
-    return float(np.sqrt(np.mean(difference ** 2)))
-
-
-def shot(page, path) -> np.ndarray:
-    page.screenshot(path=str(path))
     return read_png(path)
 
 

@@ -1,13 +1,17 @@
 // PRT viewer: loads a GLB exported by PRT for Blender and relights it live like the original SHDemo.
 // Keys: 1-8 select a light (adding suns up to it), Q/A θ −/+5°, W/E φ −/+5° (Shift: 1°), F1 Blinn-Phong, F2 PRT,
-// T textures, N normals, L light vectors; drag to orbit. URL parameters: file (default scene.glb), light (1-8),
-// theta and phi (degrees, the active sun's), lights (keep or add up to N), textures (0/1), mode (prt/phong).
+// T textures, N normals, L light vectors; drag to orbit. A dynamic object (lit from the probe volumes): Tab picks
+// one, arrows and PgUp/PgDn move it, [ ] turn it (mover.js). URL parameters: file (default scene.glb), light (1-8),
+// theta and phi (degrees, the active sun's), lights (keep or add up to N), textures (0/1), mode (prt/phong),
+// outline (0: no box around the object the keys move).
 import * as THREE from "three";
 import {GLTFLoader} from "three/addons/loaders/GLTFLoader.js";
 import {OrbitControls} from "three/addons/controls/OrbitControls.js";
 import {VertexNormalsHelper} from "three/addons/helpers/VertexNormalsHelper.js";
 import {DEGREE, LightSet} from "./lights.js";
 import {MAX_SUNS, attributeName, prtMaterial, setLight} from "./prt_material.js";
+import {Mover} from "./mover.js";
+import {loadVolumes} from "./probes.js";
 
 const STEP = 5 * DEGREE, FINE_STEP = 1 * DEGREE;
 const MODES = {1: "Blinn-Phong (F1)", 2: "PRT (F2)"};
@@ -23,7 +27,7 @@ document.body.appendChild(renderer.domElement);
 const state = {mode: params.get("mode") === "phong" ? 1 : 2, textures: params.get("textures") !== "0",
                normals: false, vectors: false, fps: 0, frames: 0, vertices: 0, error: null};
 const scene = new THREE.Scene();
-let camera, controls, lights, meshes = [], normalHelpers = [], arrows = new THREE.Group(), centre, size;
+let camera, controls, lights, mover, meshes = [], normalHelpers = [], arrows = new THREE.Group(), centre, size;
 
 async function load(url) {
   const gltf = await new GLTFLoader().loadAsync(url);
@@ -41,6 +45,8 @@ async function load(url) {
   const box = new THREE.Box3().setFromObject(gltf.scene);
   centre = box.getCenter(new THREE.Vector3());
   size = box.getSize(new THREE.Vector3()).length();
+  mover = new Mover(meshes, await loadVolumes(extras, gltf.parser), size / 40, params.get("outline") !== "0");
+  scene.add(mover.outline);
   camera = gltf.cameras[0] || defaultCamera();
   camera.aspect = innerWidth / innerHeight;
   camera.updateProjectionMatrix();
@@ -72,6 +78,8 @@ async function makePrt(mesh, parser) {
   const map = mesh.material.map || null;
   mesh.material = prtMaterial(layout, map, transfer);
   mesh.userData.layout = layout;
+  const association = parser.associations.get(mesh);  // a mesh of several primitives: its group is the node
+  mesh.userData.node = association && association.nodes !== undefined ? mesh : mesh.parent;
   meshes.push(mesh);
   state.vertices += mesh.geometry.getAttribute("position").count;
 }
@@ -117,7 +125,7 @@ function relight() {
     const {layout} = mesh.userData;
     if (!totals.has(layout.order)) totals.set(layout.order, lights.total(layout.order));
     const uniforms = mesh.material.uniforms;
-    setLight(mesh.material, layout, totals.get(layout.order));
+    if (!layout.dynamic) setLight(mesh.material, layout, totals.get(layout.order));
     uniforms.uMode.value = state.mode;
     uniforms.uTextures.value = state.textures;
     uniforms.uSuns.value = suns.length;
@@ -127,6 +135,7 @@ function relight() {
     });
     uniforms.uAmbient.value.fromArray(ambient);
   }
+  mover.relight((order) => totals.get(order), setLight);
   arrows.clear();
   for (const sun of suns) {
     const direction = new THREE.Vector3().fromArray(sun.direction);
@@ -144,6 +153,7 @@ function showReadout() {
     `${MODES[state.mode]} · textures ${on(state.textures)} (T) · normals ${on(state.normals)} (N) · ` +
       `light vectors ${on(state.vectors)} (L)`,
     `${state.fps.toFixed(1)} fps · ${state.vertices} vertices · drag to orbit`,
+    ...(mover.moving ? [mover.describe()] : []),
   ].join("\n");
 }
 
@@ -157,7 +167,11 @@ const TURNS = {q: [-1, 0], a: [1, 0], w: [0, -1], e: [0, 1]};
 addEventListener("keydown", (event) => {
   if (!camera) return;  // still loading
   const key = event.key.length === 1 ? event.key.toLowerCase() : event.key;
-  if (key >= "1" && key <= "8") {
+  if (key === "Tab") {
+    mover.next();
+  } else if (mover.press(key, event.code, event.shiftKey)) {
+    // moved or turned
+  } else if (key >= "1" && key <= "8") {
     lights.select(Number(key) - 1);
   } else if (TURNS[key]) {
     const step = event.shiftKey ? FINE_STEP : STEP;
@@ -214,7 +228,7 @@ function benchmark(frames) {
 window.prtViewer = {
   ready: false,
   state: () => ({...state, active: lights.active, lights: lights.lights.map(({kind, theta, phi}) => ({kind, theta, phi})),
-                 readout: readout.textContent}),
+                 readout: readout.textContent, moving: mover.state()}),
   benchmark,
 };
 

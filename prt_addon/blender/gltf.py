@@ -10,6 +10,10 @@ scene's extras, each mesh's packing in its extras, data textures as buffer views
 A texel bake travels as its maps (core.gltf_pack.PackedMaps: RGBA32F buffer views read through the lightmap UV set,
 which the exporter writes as a TEXCOORD like every UV map), under every profile, since they are no vertex
 attributes; its COLOR_0 holds the shaded maps sampled at each face corner's lightmap UV.
+
+A dynamic object's mesh is flagged in its extras (its transfer is in its own frame) and its COLOR_0 is shaded as the
+display shades it where it stands (blender.relighting.dynamic_light); the scene's probe volumes travel in the
+scene's extras with their matrices as buffer views (core.gltf_probes).
 """
 
 import contextlib
@@ -18,9 +22,9 @@ import os
 import bpy
 import numpy as np
 
-from ..core import glb, gltf_pack, lights as core_lights, outputs, shading
-from ..core.errors import InputError
-from . import display, layouts, materials, storage
+from ..core import glb, gltf_pack, gltf_probes, lights as core_lights, outputs, shading
+from ..core.errors import InputError, StaleBake
+from . import display, layouts, materials, probe_volumes, relighting, storage
 from .lights import scene_lights
 
 COPY_PREFIX = "PRT glTF "  # names of the temporary copies; taken off again in the file
@@ -41,6 +45,8 @@ def export(scene, path: str, profile_name: str) -> dict:
     if not baked:
         raise InputError("no visible mesh has a PRT bake to export")
     packs = {ob.name: bake.packed for ob, bake in baked}
+    dynamic = {ob.name for ob, bake in baked if bake.meta.get(storage.DYNAMIC_KEY, False)}
+    stored, volumes, notes = _probe_volumes(scene)
     shining, window, light_source = _lights(scene)
     orders = {bake.meta["order"] for _, bake in baked}
     cache = core_lights.LightCache()
@@ -51,17 +57,43 @@ def export(scene, path: str, profile_name: str) -> dict:
             for ob, bake in baked:
                 mesh = _link_copy(temporary, ob).data
                 _write_packing(mesh, bake.packed, bake.corner_points)
-                display.write_display_colours(mesh, bake.transfer, totals[bake.meta["order"]], bake.corner_points)
+                light = totals[bake.meta["order"]]
+                if ob.name in dynamic:
+                    light = relighting.dynamic_light(stored, ob, light)
+                display.write_display_colours(mesh, bake.transfer, light, bake.corner_points)
             if scene.camera is not None:
                 _link_copy(temporary, scene.camera)
             _run_exporter(temporary, written)
-        _finish_file(written, scene.name, packs, {
+        _finish_file(written, scene.name, packs, dynamic, volumes, {
             "profile": profile.name, "convention": gltf_pack.CONVENTION, "order": top_order,
             **_window_extras(window, cache), "light_source": light_source, "active_light": scene.prt_active_light,
             "lights": gltf_pack.light_extras(shining, top_order)})
     return {"path": os.path.abspath(path), "profile": profile.name, "objects": list(packs),
-            "packs": packs, "light_source": light_source,
-            "notes": [note for note in (materials.lost_note(ob) for ob, _ in baked) if note is not None]}
+            "packs": packs, "light_source": light_source, "dynamic": sorted(dynamic),
+            "probe_volumes": [volume.name for volume in volumes],
+            "notes": notes + [note for note in (materials.lost_note(ob) for ob, _ in baked) if note is not None]}
+
+
+def _probe_volumes(scene):
+    """(the baked probe volumes the display lights dynamic objects from (blender.probe_volumes.StoredProbes), the
+    same packed for glTF, notes on those left out): every probe volume of the scene with a bake, as the display
+    takes them."""
+    stored, packed, notes = [], [], []
+    for ob in scene.objects:
+        if not probe_volumes.is_probe_volume(ob) or probe_volumes.bake_id(ob) is None:
+            continue
+        try:
+            probes = probe_volumes.read(ob)
+        except StaleBake as problem:
+            notes.append(f"{problem}: not exported")
+            continue
+        meta = ob[probe_volumes.METADATA_KEY]
+        bake = {key: meta[key] for key in ("layout", "mode", "samples", "rays", "seed", "est_max_error", "date",
+                                           "bake_id")}
+        stored.append(probes)
+        packed.append(gltf_probes.pack_probes(ob.name, probes.matrices, probes.valid,
+                                              np.linalg.inv(probes.to_volume), probes.resolution, bake))
+    return stored, packed, notes
 
 
 def _window_extras(window, cache) -> dict:
@@ -163,17 +195,25 @@ def _run_exporter(temporary, path):
             window.scene = shown
 
 
-def _finish_file(path, scene_name, packs, scene_extras):
-    """Adds extras, data textures and the original names to the exporter's GLB."""
+def _finish_file(path, scene_name, packs, dynamic, volumes, scene_extras):
+    """Adds extras, data textures, probe volumes and the original names to the exporter's GLB; `dynamic`: the names
+    of the dynamic objects, `volumes` the probe volumes (core.gltf_probes.PackedProbes)."""
     with open(path, "rb") as file:
         document, binary = glb.read(file.read())
     for mesh in document.get("meshes", []):
         packed = packs[mesh["name"].removeprefix(COPY_PREFIX)]
         views = [glb.append_buffer_view(document, binary, array.tobytes()) for array in packed.buffers()]
         mesh["extras"] = {"prt": packed.extras(views)}
+        if mesh["name"].removeprefix(COPY_PREFIX) in dynamic:
+            mesh["extras"]["prt"]["dynamic"] = True
     for item in document.get("nodes", []) + document.get("meshes", []):
         item["name"] = item.get("name", "").removeprefix(COPY_PREFIX)
     scene = document["scenes"][document.get("scene", 0)]
+    if volumes:
+        scene_extras["probe_convention"] = gltf_probes.CONVENTION
+        scene_extras["probe_volumes"] = [
+            volume.extras([glb.append_buffer_view(document, binary, array.tobytes()) for array in volume.buffers()])
+            for volume in volumes]
     scene["name"], scene["extras"] = scene_name, {"prt": scene_extras}
     with open(path, "wb") as file:
         file.write(glb.write(document, binary))

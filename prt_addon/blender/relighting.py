@@ -172,9 +172,7 @@ class Relighter:
         for ob, baked in receivers:
             light = totals[math.isqrt(baked.transfer.shape[-1])]
             if is_dynamic(ob.data):
-                placed = ob.evaluated_get(depsgraph) if depsgraph is not None else ob
-                arriving = probe_volumes.light_at(probes, bounds_centre(placed), light) if probes else None
-                light = light_in_frame(light if arriving is None else arriving, placed.matrix_world)
+                light = dynamic_light(probes, ob.evaluated_get(depsgraph) if depsgraph is not None else ob, light)
             state = (_bake_key(ob.data), light.tobytes())
             if self._shaded.get(ob.data.name_full) == state:
                 continue
@@ -198,6 +196,13 @@ def is_dynamic(mesh) -> bool:
     """Whether the mesh's bake is a dynamic object's, its transfer in the object's own frame."""
     meta = mesh.get(storage.METADATA_KEY)
     return bool(meta is not None and meta.get(storage.DYNAMIC_KEY, False))
+
+
+def dynamic_light(probes: list, ob, light) -> np.ndarray:
+    """(3, n²) the light a dynamic object placed as `ob` is shaded with, in its own frame: what arrives at its centre
+    through the probe volumes (blender.probe_volumes.StoredProbes) that hold it, else the distant `light`."""
+    arriving = probe_volumes.light_at(probes, bounds_centre(ob), light) if probes else None
+    return light_in_frame(light if arriving is None else arriving, ob.matrix_world)
 
 
 def light_in_frame(light, matrix_world) -> np.ndarray:

@@ -1,0 +1,55 @@
+"""Reading a GLB in the tests as a viewer reads it: its document and binary chunk, an accessor's values, the SH
+lights of its scene's extras; and Khronos' glTF validator's verdict on it."""
+
+import json
+import subprocess
+
+import numpy as np
+
+from prt_addon.commands.view import VIEWER
+from prt_addon.core import glb, lobes, rotation
+
+VALIDATE = VIEWER.parent / "tests" / "js" / "validate_glb.mjs"
+
+
+def read_glb(path):
+    with open(path, "rb") as file:
+        return glb.read(file.read())
+
+
+def accessor(document, binary, index) -> np.ndarray:
+    """A float or normalised unsigned short accessor's values as floats, (count, components)."""
+    spec = document["accessors"][index]
+    kind = {5126: np.float32, 5123: np.uint16}[spec["componentType"]]
+    size = np.dtype(kind).itemsize
+    view = document["bufferViews"][spec["bufferView"]]
+    components = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4}[spec["type"]]
+    start = view.get("byteOffset", 0) + spec.get("byteOffset", 0)
+    stride = view.get("byteStride", size * components) // size
+    values = np.frombuffer(bytes(binary[start: start + size * stride * spec["count"]]), dtype=kind)
+    values = values.reshape(spec["count"], stride)[:, :components].astype(np.float64)
+    return values / 65535 if spec.get("normalized") else values
+
+
+def light_from_extras(extras, order) -> np.ndarray:
+    """(3, n²) in glTF's frame, built as a viewer builds it: suns' zonal lobes along their directions, the rest
+    as given, then the window."""
+    light = np.zeros((3, order * order))
+    for entry in extras["lights"]:
+        if entry["kind"] == "sun":
+            lobe = rotation.zonal_to_sh(np.array(entry["zonal"][:order]), entry["direction"])
+            light += np.outer(entry["rgb"], lobe)
+        else:
+            light += np.array(entry["coefficients"])[:, : order * order]
+    strength = extras.get("window_strengths", {}).get(str(order), 1.0)
+    return lobes.apply_window(light, lobes.window(order, extras["window"], strength))
+
+
+def validator_issues(path) -> dict:
+    """The `issues` of gltf-validator's report on the GLB (numErrors, numWarnings, ..., messages), printed."""
+    done = subprocess.run(["node", str(VALIDATE), str(path)], capture_output=True, text=True, timeout=120,
+                          check=True, cwd=VIEWER)
+    issues = json.loads(done.stdout)["issues"]
+    print(f"gltf-validator on {path.name}: {issues['numErrors']} errors, {issues['numWarnings']} warnings, "
+          f"{issues['numInfos']} infos, {issues['numHints']} hints")
+    return issues

@@ -1,0 +1,121 @@
+// The probe volumes of a PRT export (the scene's extras.prt.probe_volumes, README "Probe volumes in glTF") and the
+// light they give a dynamic object, as the add-on's display computes it: the trilinear blend of the valid probes
+// around the object's centre (core/probe_grid.py, ported line for line), Σ w_p T_p L, then turned into the object's
+// frame (blender/relighting.py light_in_frame). Plain arrays, no three.js, so node runs it in the tests.
+import {rotate} from "./sh.js";
+
+export class ProbeVolume {
+  // `volume`: one entry of probe_volumes; `matrices`: its float32 buffer view (P × C × n² × n²).
+  constructor(volume, matrices) {
+    this.name = volume.name;
+    this.order = volume.order;
+    this.channels = volume.channels;
+    this.resolution = volume.resolution;
+    this.valid = volume.valid;
+    this.matrices = matrices;
+    const p = volume.placement;  // 16 floats by rows: cube [−1, 1]³ → glTF world
+    const A = [[p[0], p[1], p[2]], [p[4], p[5], p[6]], [p[8], p[9], p[10]]];
+    this.origin = [p[3], p[7], p[11]];
+    this.inverse = inverse3(A);
+    this.size = Math.abs(determinant3(A));
+  }
+
+  // The point (glTF world) in the cube's frame, or null outside the cube.
+  local(point) {
+    const d = point.map((v, i) => v - this.origin[i]);
+    const local = this.inverse.map((row) => row[0] * d[0] + row[1] * d[1] + row[2] * d[2]);
+    return local.every((v) => Math.abs(v) <= 1) ? local : null;
+  }
+
+  // [3][n²]: the light arriving where the probes `indices` carry `weights`, each colour channel through its own
+  // matrix (a grey volume's one matrix for all three).
+  incoming(indices, weights, light) {
+    const n2 = this.order * this.order, block = n2 * n2;
+    return [0, 1, 2].map((c) => {
+      const out = new Float64Array(n2);
+      const channel = this.channels === 1 ? 0 : c;
+      indices.forEach((probe, q) => {
+        const w = weights[q];
+        if (w === 0) return;
+        const start = (probe * this.channels + channel) * block;
+        for (let i = 0; i < n2; i++) {
+          let sum = 0;
+          for (let j = 0; j < n2; j++) sum += this.matrices[start + i * n2 + j] * light[c][j];
+          out[i] += w * sum;
+        }
+      });
+      return out;
+    });
+  }
+}
+
+export async function loadVolumes(extras, parser) {
+  const volumes = [];
+  for (const volume of extras.probe_volumes || []) {
+    const buffer = await parser.getDependency("bufferView", volume.bufferView);
+    volumes.push(new ProbeVolume(volume, new Float32Array(buffer)));
+  }
+  return volumes;
+}
+
+// {indices, weights} of the 8 probes of the cell around `local` (the cube's frame), trilinear, over the valid ones
+// only and rescaled to sum to 1 (all zero where none is valid); a point beyond the probes' lattice is clamped onto it.
+export function trilinearWeights(local, resolution, valid) {
+  const low = [], fraction = [];
+  for (let axis = 0; axis < 3; axis++) {
+    const n = resolution[axis];
+    const grid = Math.min(Math.max((local[axis] + 1) * n / 2 - 0.5, 0), n - 1);
+    low.push(Math.min(Math.floor(grid), Math.max(n - 2, 0)));
+    fraction.push(grid - low[axis]);
+  }
+  const indices = [], weights = [];
+  for (const a of [0, 1]) {
+    for (const b of [0, 1]) {
+      for (const c of [0, 1]) {
+        const cell = [a, b, c].map((step, axis) => Math.min(low[axis] + step, resolution[axis] - 1));
+        const index = (cell[0] * resolution[1] + cell[1]) * resolution[2] + cell[2];
+        const weight = [a, b, c].reduce((w, step, axis) => w * (step ? fraction[axis] : 1 - fraction[axis]), 1);
+        indices.push(index);
+        weights.push(valid[index] ? weight : 0);
+      }
+    }
+  }
+  const total = weights.reduce((sum, w) => sum + w, 0);
+  return {indices, weights: total > 0 ? weights.map((w) => w / total) : weights};
+}
+
+// {light, volume}: what arrives at `point` (glTF world) from the distant light [3][n²] through the smallest volume
+// of the light's order whose cube holds it, or {light: null} where none does.
+export function lightAt(volumes, point, light) {
+  const order = Math.round(Math.sqrt(light[0].length));
+  let best = null, local = null;
+  for (const volume of volumes) {
+    const inside = volume.order === order ? volume.local(point) : null;
+    if (inside && (best === null || volume.size < best.size)) [best, local] = [volume, inside];
+  }
+  if (best === null) return {light: null, volume: null};
+  const {indices, weights} = trilinearWeights(local, best.resolution, best.valid);
+  return {light: best.incoming(indices, weights, light), volume: best};
+}
+
+// The light [3][n²] (glTF world) as an object turned by `turn` (3 × 3 rows, its world rotation) sees it in its own
+// frame: L(R·ω), the coefficients rotated by Rᵀ.
+export function lightInFrame(light, turn) {
+  const back = [0, 1, 2].map((i) => [0, 1, 2].map((j) => turn[j][i]));
+  return light.map((channel) => rotate(channel, back));
+}
+
+function determinant3(A) {
+  return A[0][0] * (A[1][1] * A[2][2] - A[1][2] * A[2][1]) - A[0][1] * (A[1][0] * A[2][2] - A[1][2] * A[2][0]) +
+    A[0][2] * (A[1][0] * A[2][1] - A[1][1] * A[2][0]);
+}
+
+function inverse3(A) {
+  const det = determinant3(A);
+  const cofactor = (i, j) => {
+    const rows = [0, 1, 2].filter((r) => r !== i), cols = [0, 1, 2].filter((c) => c !== j);
+    const minor = A[rows[0]][cols[0]] * A[rows[1]][cols[1]] - A[rows[0]][cols[1]] * A[rows[1]][cols[0]];
+    return ((i + j) % 2 ? -minor : minor);
+  };
+  return [0, 1, 2].map((i) => [0, 1, 2].map((j) => cofactor(j, i) / det));
+}
