@@ -6,10 +6,22 @@ import subprocess
 
 import numpy as np
 
+from conftest import run_cli
+
 from prt_addon.commands.view import VIEWER
 from prt_addon.core import glb, lobes, rotation
 
 VALIDATE = VIEWER.parent / "tests" / "js" / "validate_glb.mjs"
+
+
+def exported(blend, *said):
+    """`prt export BLEND --gltf` beside it: the GLB's path, once the command has exited 0 saying each of `said`."""
+    path = blend.with_suffix(".glb")
+    done = run_cli("export", blend, "--gltf", path)
+    assert done.returncode == 0, done.stderr
+    for words in said:
+        assert words in done.stdout, done.stdout
+    return path
 
 
 def read_glb(path):

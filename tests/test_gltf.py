@@ -16,7 +16,7 @@ import pytest
 
 from browser import chromium, open_viewer, viewer_state
 from conftest import ROOT, add_light, run_cli
-from gltf_files import accessor, light_from_extras, read_glb, validator_issues
+from gltf_files import accessor, exported, light_from_extras, read_glb, validator_issues
 from pictures import read_png, rms_over_objects, shot
 from core.rotations import matrix_from_euler_zyz
 from prt_addon.blender import lights, sample_scenes
@@ -55,11 +55,7 @@ def demo_file(addon, tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def demo_glb(demo_file):
-    path = demo_file.with_suffix(".glb")
-    done = run_cli("export", demo_file, "--gltf", path)
-    assert done.returncode == 0, done.stderr
-    assert "(web profile)" in done.stdout and "COLOR_0 under the scene's SH lights" in done.stdout
-    return path
+    return exported(demo_file, "(web profile)", "COLOR_0 under the scene's SH lights")
 
 
 @pytest.fixture(scope="module")

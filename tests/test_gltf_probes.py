@@ -17,8 +17,8 @@ import pytest
 from mathutils import Matrix
 
 from browser import chromium, open_viewer, viewer_state
-from conftest import ROOT, add_light, run_cli
-from gltf_files import accessor, light_from_extras, read_glb, validator_issues
+from conftest import ROOT, add_light
+from gltf_files import accessor, exported, light_from_extras, read_glb, validator_issues
 from pictures import inner_pixels, read_png, rms_over_objects, shot
 from prt_addon.blender import probe_volumes
 from prt_addon.blender.relighting import Relighter, bounds_centre
@@ -68,11 +68,7 @@ def probe_file(addon, tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def probe_glb(probe_file):
-    path = probe_file.with_suffix(".glb")
-    done = run_cli("export", probe_file, "--gltf", path)
-    assert done.returncode == 0, done.stderr
-    assert "; dynamic: Suzanne; probe volumes: PRT Probe Volume;" in done.stdout
-    return path
+    return exported(probe_file, "; dynamic: Suzanne; probe volumes: PRT Probe Volume;")
 
 
 @pytest.fixture(scope="module")
