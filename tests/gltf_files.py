@@ -14,6 +14,18 @@ from prt_addon.core import glb, lobes, rotation
 VALIDATE = VIEWER.parent / "tests" / "js" / "validate_glb.mjs"
 
 
+def baked_and_saved(settings, path, then=lambda: None):
+    """Bakes the scene as it is with `settings` (core.bake.BakeSettings), runs `then`, saves it at `path` and
+    empties the session: the path."""
+    import bpy
+    from prt_addon.blender.scene_bake import SceneBake
+    SceneBake(bpy.context, settings).run(log=lambda line: None)
+    then()
+    bpy.ops.wm.save_as_mainfile(filepath=str(path))
+    bpy.ops.wm.read_homefile(use_empty=True)
+    return path
+
+
 def exported(blend, *said):
     """`prt export BLEND --gltf` beside it: the GLB's path, once the command has exited 0 saying each of `said`."""
     path = blend.with_suffix(".glb")

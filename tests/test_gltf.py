@@ -16,7 +16,7 @@ import pytest
 
 from browser import chromium, open_viewer, viewer_state
 from conftest import ROOT, add_light, run_cli
-from gltf_files import accessor, exported, light_from_extras, read_glb, validator_issues
+from gltf_files import accessor, baked_and_saved, exported, light_from_extras, read_glb, validator_issues
 from pictures import read_png, rms_over_objects, shot
 from core.rotations import matrix_from_euler_zyz
 from prt_addon.blender import lights, sample_scenes
@@ -45,12 +45,8 @@ def demo_file(addon, tmp_path_factory):
     differs less), lit by a sun and a sky."""
     bpy.ops.wm.read_homefile(use_empty=True)
     sample_scenes.build_demo_scene()
-    SceneBake(bpy.context, bake.BakeSettings(order=4, mode="shadowed", samples=64)).run(log=lambda line: None)
-    add_demo_lights()
-    path = tmp_path_factory.mktemp("gltf") / "demo_lit.blend"
-    bpy.ops.wm.save_as_mainfile(filepath=str(path))
-    bpy.ops.wm.read_homefile(use_empty=True)
-    return path
+    return baked_and_saved(bake.BakeSettings(order=4, mode="shadowed", samples=64),
+                           tmp_path_factory.mktemp("gltf") / "demo_lit.blend", then=add_demo_lights)
 
 
 @pytest.fixture(scope="module")

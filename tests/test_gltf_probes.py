@@ -18,12 +18,11 @@ from mathutils import Matrix
 
 from browser import chromium, open_viewer, viewer_state
 from conftest import ROOT, add_light
-from gltf_files import accessor, exported, light_from_extras, read_glb, validator_issues
+from gltf_files import accessor, baked_and_saved, exported, light_from_extras, read_glb, validator_issues
 from pictures import inner_pixels, read_png, rms_over_objects, shot
 from prt_addon.blender import probe_volumes
 from prt_addon.blender.relighting import Relighter, bounds_centre
 from prt_addon.blender.render import render
-from prt_addon.blender.scene_bake import SceneBake
 from prt_addon.commands.view import VIEWER, address, start_server, stop_server
 from prt_addon.core import bake, gltf_pack, gltf_probes, probe_grid, rotation, shading
 
@@ -59,11 +58,8 @@ def probe_file(addon, tmp_path_factory):
     add_light("SUN", theta=1.0, phi=0.0, angular_radius=0.1, strength=2.0)
     add_light("SKY", strength=0.2)
     bpy.context.scene.prt_active_light = 0
-    SceneBake(bpy.context, bake.BakeSettings(order=ORDER, mode="shadowed", samples=256)).run(log=lambda line: None)
-    path = tmp_path_factory.mktemp("gltf_probes") / "probes.blend"
-    bpy.ops.wm.save_as_mainfile(filepath=str(path))
-    bpy.ops.wm.read_homefile(use_empty=True)
-    return path
+    return baked_and_saved(bake.BakeSettings(order=ORDER, mode="shadowed", samples=256),
+                           tmp_path_factory.mktemp("gltf_probes") / "probes.blend")
 
 
 @pytest.fixture(scope="module")
