@@ -48,6 +48,7 @@ class LightGroup:
     environment: np.ndarray  # (H, W, 3) equirect reconstruction of the light
     bounces: int | None
     indirect_only: bool = False  # only the bounced light: what colour bleeding is made of
+    alone: bool = False  # rendered without the other meshes (a dynamic object's bake is against itself only)
 
 
 class CyclesReference(Job):
@@ -114,10 +115,17 @@ class CyclesReference(Job):
         for ob in context.view_layer.objects:
             ob.select_set(ob.name in names)
         context.view_layer.objects.active = group.objects[0]
+        others = [ob for ob in self.albedos if group.alone and ob.name not in names and not ob.hide_render]
+        for ob in others:
+            ob.hide_render = True
         start = time.perf_counter()
-        bpy.ops.object.bake(type="DIFFUSE", target="VERTEX_COLORS", use_selected_to_active=False,
-                            pass_filter={"COLOR"} | ({"INDIRECT"} if group.bounces else set())
-                            | (set() if group.indirect_only else {"DIRECT"}))
+        try:
+            bpy.ops.object.bake(type="DIFFUSE", target="VERTEX_COLORS", use_selected_to_active=False,
+                                pass_filter={"COLOR"} | ({"INDIRECT"} if group.bounces else set())
+                                | (set() if group.indirect_only else {"DIRECT"}))
+        finally:
+            for ob in others:
+                ob.hide_render = False
         self.time_s += time.perf_counter() - start
         for ob in group.objects:
             values = np.empty(self._rows(ob) * 4, dtype=np.float32)

@@ -129,7 +129,7 @@ class Relighter:
             self._reported.add(message)
             print(message)
 
-    def _probes(self, scene) -> list:
+    def probes(self, scene) -> list:
         """The scene's baked probe volumes (blender.probe_volumes.StoredProbes), each read once per bake; a stale
         one is reported once and never applied."""
         found = []
@@ -165,14 +165,10 @@ class Relighter:
         self._write_colours(scene, list(self._receivers(scene)), totals)
 
     def _write_colours(self, scene, receivers, totals, depsgraph=None):
-        """The colours of each mesh whose light or bake changed; a dynamic object's light is what arrives at its
-        centre through the probe volume that holds it (the distant light outside every volume), turned into its
-        frame (as the depsgraph places it, else as it is now)."""
-        probes = self._probes(scene) if any(is_dynamic(ob.data) for ob, _ in receivers) else []
+        """The colours of each mesh whose light or bake changed, under its displayed_light."""
+        probes = self.probes(scene) if any(is_dynamic(ob.data) for ob, _ in receivers) else []
         for ob, baked in receivers:
-            light = totals[math.isqrt(baked.transfer.shape[-1])]
-            if is_dynamic(ob.data):
-                light = dynamic_light(probes, ob.evaluated_get(depsgraph) if depsgraph is not None else ob, light)
+            light = displayed_light(ob, totals[math.isqrt(baked.transfer.shape[-1])], probes, depsgraph)
             state = (_bake_key(ob.data), light.tobytes())
             if self._shaded.get(ob.data.name_full) == state:
                 continue
@@ -196,6 +192,15 @@ def is_dynamic(mesh) -> bool:
     """Whether the mesh's bake is a dynamic object's, its transfer in the object's own frame."""
     meta = mesh.get(storage.METADATA_KEY)
     return bool(meta is not None and meta.get(storage.DYNAMIC_KEY, False))
+
+
+def displayed_light(ob, light, probes=(), depsgraph=None) -> np.ndarray:
+    """The SH light (3, n²) the display shades the object's transfer with: the distant light, or a dynamic object's
+    dynamic_light as the depsgraph places it (else as it is now), of `probes` (Relighter.probes). Validation shades
+    with it too."""
+    if not is_dynamic(ob.data):
+        return light
+    return dynamic_light(probes, ob.evaluated_get(depsgraph) if depsgraph is not None else ob, light)
 
 
 def dynamic_light(probes: list, ob, light) -> np.ndarray:

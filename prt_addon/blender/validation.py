@@ -8,6 +8,11 @@ the spread of its passes, is taken out of the measured difference: the two noise
 squares add (core.statistics), in the RMS and vertex by vertex, for the 99th percentile and the worst vertices.
 The report names the object with the largest p99 and where its worst vertices are (indices and world positions).
 
+A dynamic object's bake is its own, against itself only, in its own frame: it is shaded with the light the display
+gives it (blender.relighting.displayed_light: the distant light, or what the probe volume holding it carries there,
+turned into its frame). Outside every probe volume nothing of the scene reaches it, so Cycles renders it alone, the
+other meshes hidden from its pass; inside one, Cycles renders it in the scene.
+
 With reference "light", Cycles also runs under the scene's lights as they are (an environment's image itself, a
 sun as a Sun lamp, a sky as a constant: cycles.real_light_world), and the report adds that total error beside
 PRT's own and their difference, what band-limiting the light costs. A sun split off an environment is drawn by its
@@ -27,6 +32,8 @@ from ..core.statistics import clamped_fraction, compare, worst_object
 from . import geometry, materials, mesh_arrays, storage
 from .cycles import CyclesReference, LightGroup, rendered_meshes
 from .lights import scene_lights, split_sun
+from .probe_volumes import light_at
+from .relighting import Relighter, bounds_centre, displayed_light, is_dynamic
 
 ENVIRONMENT_SIZE = (256, 512)  # rows, columns: order ≤ 10 is smooth at this resolution
 DEFAULT_SAMPLES = 64  # Cycles samples per pass
@@ -111,10 +118,13 @@ class Validation(WrappingJob):
         if unshadowed:
             self.notes.append(f"{', '.join(map(repr, unshadowed))}: unshadowed bakes, while Cycles casts shadows; "
                               f"they agree only where nothing occludes")
+        self.probes = Relighter().probes(context.scene)
         groups = {}
         for ob, meta in self.receivers:
-            key = (meta["order"], meta.get("bounces") if meta["mode"] == INTERREFLECTED_MODE else None)
-            groups.setdefault(key, LightGroup([], environments[key[0]], key[1])).objects.append(ob)
+            alone = ob.name if self._alone(ob, meta) else None
+            key = (meta["order"], meta.get("bounces") if meta["mode"] == INTERREFLECTED_MODE else None, alone)
+            groups.setdefault(key, LightGroup([], environments[key[0]], key[1], alone=alone is not None)
+                              ).objects.append(ob)
         per_corner = {ob.name for ob, meta in self.receivers if meta.get("domain") == "CORNER"}
         if per_corner:
             self.notes.append(f"{', '.join(map(repr, sorted(per_corner)))}: baked per face corner (vertices split "
@@ -146,6 +156,10 @@ class Validation(WrappingJob):
             raise InputError("nothing to validate: " + ("; ".join(self.problems) or "no mesh objects"))
         return found
 
+    def _alone(self, ob, meta) -> bool:
+        """A dynamic object outside every probe volume: only the distant light reaches it."""
+        return is_dynamic(ob.data) and light_at(self.probes, bounds_centre(ob), self.lights[meta["order"]]) is None
+
     def _real_light_reference(self, samples, passes, per_corner):
         scene = self.context.scene
         if not self.scene_light:
@@ -158,7 +172,9 @@ class Validation(WrappingJob):
         groups = {}
         for ob, meta in self.receivers:
             bounces = meta.get("bounces") if meta["mode"] == INTERREFLECTED_MODE else None
-            groups.setdefault(bounces, LightGroup([], None, bounces)).objects.append(ob)
+            alone = ob.name if self._alone(ob, meta) else None
+            groups.setdefault((bounces, alone), LightGroup([], None, bounces, alone=alone is not None)
+                              ).objects.append(ob)
         return CyclesReference(self.context, list(groups.values()), self.albedos, samples, passes, per_corner,
                                scene_light=True)
 
@@ -197,17 +213,20 @@ class Validation(WrappingJob):
 
     def _prt_colours(self) -> list:
         start = time.perf_counter()
-        colours = []
-        for ob, meta in self.receivers:
-            transfer, _ = storage.read_transfer(ob.data)
-            corner_points = storage.corner_points_of(ob.data)
-            if corner_points is None:
-                colours.append(prt_colours(transfer, self.lights[meta["order"]], self.albedos[ob]))
-            else:  # per face corner, as Cycles baked it
-                corner_albedo = self.albedos[ob][mesh_arrays.mesh_corner_vertices(ob.data)]
-                colours.append(prt_colours(transfer[corner_points], self.lights[meta["order"]], corner_albedo))
+        colours = [self.colours(ob, displayed_light(ob, self.lights[meta["order"]], self.probes))
+                   for ob, meta in self.receivers]
         self.shade_time_s = time.perf_counter() - start
         return colours
+
+    def colours(self, ob, light) -> np.ndarray:
+        """The receiver's PRT colours under `light` (3, n²) in its transfer's frame, per vertex, or per face corner
+        where its bake is per corner, as Cycles bakes it."""
+        transfer, _ = storage.read_transfer(ob.data)
+        corner_points = storage.corner_points_of(ob.data)
+        if corner_points is None:
+            return prt_colours(transfer, light, self.albedos[ob])
+        corner_albedo = self.albedos[ob][mesh_arrays.mesh_corner_vertices(ob.data)]
+        return prt_colours(transfer[corner_points], light, corner_albedo)
 
     def store_errors(self, comparisons):
         """Each receiver's per-vertex (per-corner) error against Cycles on its mesh, for the viewport's Difference
