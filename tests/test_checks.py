@@ -100,8 +100,18 @@ def test_memory_grows_with_the_points_order_hits_and_spawned_workers():
                                               (int(1.1 * checks.bake_bytes(size())), checks.WARNING),
                                               (64 << 30, checks.OK)])
 def test_memory_is_graded_against_what_is_available(available, level):
-    check = checks.memory_check(size(), available)
+    check = checks.memory_check([size()], available)
     assert check.level == level and check.subject == "memory"
+
+
+def test_parts_baked_one_after_another_need_the_largest_ones_memory_and_keep_every_result():
+    """A bake with dynamic parts: each part's rays and ray tree live while it bakes, its result until all are
+    stored."""
+    static, part = size(), size(points=500, stored_rows=2_000, occluder_vertices=500, occluder_triangles=1_000)
+    check = checks.memory_check([static, part], None)
+    needed, stored = checks.bake_bytes(static), checks.stored_bytes(static) + checks.stored_bytes(part)
+    assert f"needs about {checks.format_bytes(needed)}, its result {checks.format_bytes(stored)}" in check.text
+    assert checks.stored_bytes(part) == 2_000 * (18 + 2) * 4  # 16 coefficients in vectors of 3, error and rule
 
 
 def test_available_memory_is_the_systems_and_at_most_its_total():

@@ -21,9 +21,10 @@ from prt_addon.blender.plan import plan_bake
 from prt_addon.blender.relighting import light_in_frame
 from prt_addon.blender.request import read_request
 from prt_addon.blender.scene_bake import SceneBake
-from prt_addon.core import bake
+from prt_addon.core import bake, checks
 from prt_addon.core.checks import ERROR, WARNING
 from prt_addon.core.executors import InProcess
+from prt_addon.core.progress import format_duration
 from prt_addon.core.statistics import compare
 from prt_addon.core.shading import direction_from_angles, sun_coefficients
 
@@ -191,6 +192,35 @@ def test_the_command_line_marks_receivers_dynamic_and_saves_it(empty_scene, tmp_
     assert not bpy.data.objects["Plane"].prt_dynamic and "prt" not in bpy.data.objects["Plane"].data
 
 
+
+def test_the_checks_count_each_dynamic_objects_rays_against_itself_only(empty_scene):
+    """A static floor, and a dynamic Suzanne and cube: three bakes one after another, each part casting its
+    points' rays (as many as the bake then bakes) against its own triangles, and the time and memory checks adding
+    them up."""
+    bpy.ops.mesh.primitive_plane_add(size=6)
+    bpy.ops.mesh.primitive_monkey_add(location=(0, 0, 1.2))
+    bpy.ops.object.shade_smooth()  # one point per vertex
+    bpy.context.object.prt_dynamic = True
+    bpy.ops.mesh.primitive_cube_add(size=0.5, location=(2, 0, 0.25))
+    bpy.ops.object.shade_smooth()
+    bpy.context.object.prt_dynamic = True
+    bpy.ops.object.select_all(action="DESELECT")
+    update()
+    samples = 16
+    plan = plan_bake(read_request(bpy.context, bake.BakeSettings(order=ORDER, samples=samples)))
+    sizes = scene_checks.bake_sizes(plan, InProcess())
+    assert [size.occluder_triangles for size in sizes] == [2, 968, 12]  # the plane; Suzanne's own; the cube's own
+    found = {check.subject: check.text for check in scene_checks.scene_checks(bpy.context, plan, InProcess())}
+    points = {name: entry["points"] for name, entry in bake_now(samples=samples).summary.per_object.items()}
+    assert [size.rays for size in sizes] == [points[name] * samples for name in ("Plane", "Suzanne", "Cube")]
+    engine = sizes[0].ray_engine
+    seconds = sum(checks.estimated_seconds(size.rays, size.occluder_triangles, engine, 1) for size in sizes)
+    assert f"about {format_duration(seconds)} with 1 process ({sum(points.values()) * samples} rays" in found["time"]
+    needed = max(checks.bake_bytes(size) for size in sizes)
+    assert f"needs about {checks.format_bytes(needed)}" in found["memory"]
+    dynamic_only = plan_bake(read_request(bpy.context, bake.BakeSettings(order=ORDER, samples=samples),
+                                          ["Suzanne", "Cube"]))
+    assert [size.occluder_triangles for size in scene_checks.bake_sizes(dynamic_only, InProcess())] == [968, 12]
 
 
 def test_validation_shades_a_dynamic_object_turned_and_has_cycles_render_it_alone(sphere_over_floor, prt):

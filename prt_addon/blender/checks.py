@@ -40,20 +40,17 @@ def all_checks(context, plan, executor, output: str | None, required: bool) -> l
 
 def scene_checks(context, plan, executor) -> list[Check]:
     """Workers, memory, time, then each object's problems, then what the plan found (objects not baked, notes), for
-    the plan (blender.plan) baked by `executor` (core.executors). The bake's first job is made to size it, not run;
-    the time is estimated from its rays at the ray engine's typical rate (core.engines.RATES)."""
-    job, settings = first_job(plan, executor), plan.settings
-    processes = job.processes()
-    spawned = processes > 1 and executor.spawned
-    parallel = min(processes, os.cpu_count() or 1)
-    size = bake_size(plan, job, spawned)
-    occluders = job.occluders
-    engine = occluders.engine if occluders is not None else None
-    seconds = checks.estimated_seconds(size.rays, size.occluder_triangles, engine, parallel,
-                                       executor.start_s if spawned else 0.0)
-    found = [checks.workers_check(processes, tempfile.gettempdir()),
-             checks.memory_check(size, checks.available_memory()),
-             checks.time_check(size.rays, seconds, engine, settings, parallel)]
+    the plan (blender.plan) baked by `executor` (core.executors). The bake's first jobs are made to size it, not run;
+    the time is estimated from their rays at the ray engine's typical rate (core.engines.RATES)."""
+    settings = plan.settings
+    sizes = bake_sizes(plan, executor)
+    parallel = min(sizes[0].processes, os.cpu_count() or 1)
+    seconds = sum(checks.estimated_seconds(size.rays, size.occluder_triangles, size.ray_engine,
+                                           min(size.processes, os.cpu_count() or 1),
+                                           executor.start_s if size.spawned else 0.0) for size in sizes)
+    found = [checks.workers_check(sizes[0].processes, tempfile.gettempdir()),
+             checks.memory_check(sizes, checks.available_memory()),
+             checks.time_check(sum(size.rays for size in sizes), seconds, sizes[0].ray_engine, settings, parallel)]
     casts_rays = settings.mode != "unshadowed"
     receivers = [bpy.data.objects[(name, None)] for name in plan.names]
     others = ([ob for ob in geometry.visible_mesh_objects(context) if ob not in receivers] if casts_rays else [])
@@ -63,6 +60,16 @@ def scene_checks(context, plan, executor) -> list[Check]:
     found += [Check(WARNING, "not baked", problem) for problem in plan.problems]
     found += [Check(INFO, "note", note) for note in plan.notes()]
     return found
+
+
+def bake_sizes(plan, executor) -> list[checks.BakeSize]:
+    """The plan's bake and each of its dynamic parts (blender.plan), which bake one after another, each against its
+    own occluders: a dynamic object's rays against itself only."""
+    sizes = []
+    for part in [plan] + plan.parts:
+        job = first_job(part, executor)
+        sizes.append(bake_size(part, job, job.processes() > 1 and executor.spawned))
+    return sizes
 
 
 def bake_size(plan, job, spawned: bool) -> checks.BakeSize:

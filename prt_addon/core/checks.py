@@ -136,8 +136,10 @@ def available_memory() -> int | None:
         return None
 
 
-def memory_check(size: BakeSize, available: int | None) -> Check:
-    needed, stored = bake_bytes(size), stored_bytes(size)
+def memory_check(sizes: list[BakeSize], available: int | None) -> Check:
+    """The bake of `sizes`, its parts, baked one after another: its peak is its largest part's, and every part's
+    result is kept until all are stored."""
+    needed, stored = max(bake_bytes(size) for size in sizes), sum(stored_bytes(size) for size in sizes)
     said = f"the bake needs about {format_bytes(needed)}, its result {format_bytes(stored)}"
     if available is None:
         return Check(INFO, "memory", f"{said}; the memory available is unknown here")
