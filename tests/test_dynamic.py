@@ -7,6 +7,7 @@ its shaded value at a vertex of world normal n is the band-limited lobe in close
 is compared with the same torus baked statically at that turn, alone: the two agree within their bakes' noise.
 """
 
+import json
 import math
 
 import bpy
@@ -27,6 +28,7 @@ from prt_addon.core.executors import InProcess
 from prt_addon.core.progress import format_duration
 from prt_addon.core.statistics import compare
 from prt_addon.core.shading import direction_from_angles, sun_coefficients
+from test_heatmaps import labels_drawn
 
 ORDER = 4
 SUN = (0.6, 2.2, 3.0)  # θ, φ, strength of a point sun
@@ -184,13 +186,30 @@ def test_the_command_line_marks_receivers_dynamic_and_saves_it(empty_scene, tmp_
     bpy.ops.mesh.primitive_monkey_add(location=(0, 0, 1.2))
     path = str(tmp_path / "scene.blend")
     bpy.ops.wm.save_as_mainfile(filepath=path)
-    result = run_cli("bake", path, "--object", "Suzanne", "--dynamic", "--samples", "16", "--workers", "1")
+    report = tmp_path / "report.json"
+    result = run_cli("bake", path, "--object", "Suzanne", "--dynamic", "--samples", "16", "--workers", "1",
+                     "--report", report)
     assert result.returncode == 0, result.stderr
+    assert "; 1 dynamic object, each baked in its own frame against itself only" in result.stdout
+    written = json.loads(report.read_text())
+    assert written["dynamic"] == 1 and written["per_object"]["Suzanne"]["dynamic"] is True
     bpy.ops.wm.open_mainfile(filepath=path)
     monkey = bpy.data.objects["Suzanne"]
     assert monkey.prt_dynamic and monkey.data["prt"][storage.DYNAMIC_KEY] is True
     assert not bpy.data.objects["Plane"].prt_dynamic and "prt" not in bpy.data.objects["Plane"].data
 
+
+def test_the_stored_bake_panel_and_the_summary_say_which_bakes_are_dynamic(sphere_over_floor):
+    sphere, floor = sphere_over_floor
+    job = bake_now()
+    assert job.summary.dynamic == 1
+    assert {name: entry["dynamic"] for name, entry in job.summary.per_object.items()} == {"Plane": False,
+                                                                                           "Sphere": True}
+    assert job.summary.line().endswith("; 1 dynamic object, each baked in its own frame against itself only")
+    said = "Dynamic: in its own frame, against itself only"
+    for ob, dynamic in ((sphere, True), (floor, False)):
+        bpy.context.view_layer.objects.active = ob
+        assert (said in labels_drawn(bpy.types.PRT_PT_bake_info, [])) is dynamic
 
 
 def test_the_checks_count_each_dynamic_objects_rays_against_itself_only(empty_scene):

@@ -190,9 +190,11 @@ class Execution(WrappingJob):
         for receiver, layout in zip(receivers, chosen):
             summary.per_object[receiver.name].update(vertices=vertices[receiver.name],
                                                      points=len(layout.receiver.positions),
-                                                     split_vertices=layout.split_vertices)
+                                                     split_vertices=layout.split_vertices,
+                                                     dynamic=self.plan.request.dynamic)
         summary.vertices = sum(entry["vertices"] for entry in summary.per_object.values())
         summary.split_vertices = sum(entry["split_vertices"] for entry in summary.per_object.values())
+        summary.dynamic = sum(entry["dynamic"] for entry in summary.per_object.values())
         self._measure_interpolation(summary, [receiver.name for receiver in receivers], results)
         decisions = [self.decisions[receiver.name] for receiver in receivers if self.decisions[receiver.name]]
         own = BakeResults([receiver.name for receiver in receivers], chosen, results, summary, decisions,
@@ -243,7 +245,7 @@ def merged_summary(outcomes: list, time_s: float) -> job.Summary:
                   for name in ("rel_error", "rel_rule_error"))
     merged = job.Summary(**{**vars(first), "per_object": {}, "phases_s": {}})
     for name in ("objects", "vertices", "points", "rays", "skipped_vertices", "split_vertices", "interp_points",
-                 "interp_rays", "inside_another_part"):
+                 "interp_rays", "inside_another_part", "dynamic"):
         setattr(merged, name, sum(getattr(summary, name) for summary in summaries))
     for summary in summaries:
         merged.per_object.update(summary.per_object)

@@ -70,6 +70,7 @@ class Summary:
     error_curve: list = field(default_factory=list)  # core.error_curve.Row after each round, bounces, texel lattices
     est_rule_rms_rel_error: float = 0.0  # the rules' part of est_rms_rel_error (core.rules.estimate)
     inside_another_part: int = 0  # points the rays found black inside another part (TransferJob.inside_another_part)
+    dynamic: int = 0  # objects baked dynamic: each in its own frame, against itself only
 
     def line(self) -> str:
         bounced = (f", {self.bounces} bounces in {self.phases_s.get('bounces_s', 0.0):.2f} s "
@@ -87,11 +88,13 @@ class Summary:
                  if round(self.est_rule_rms_rel_error, 4) else "")  # as printed: an exactly reversed normal has none
         if self.inside_another_part:
             ruled += f"; {self.inside_another_part} points inside another part (black)"
+        dynamic = (f"; {self.dynamic} dynamic object{'s' if self.dynamic > 1 else ''}, each baked in its own frame "
+                   f"against itself only" if self.dynamic else "")
         return (f"PRT bake: {self.objects} objects, {self.vertices} vertices{split}, order {self.order} {self.mode}: "
                 f"{self.time_s:.2f} s, {self.rays} rays, {self.rays_per_s / 1e3:.0f} k rays/s{engine}, "
                 f"{self.skipped_vertices} vertices exact without rays, "
                 f"est. RMS rel. error {self.est_rms_rel_error:.4f}{doubt}, max {self.est_max_rel_error:.4f}{between}"
-                f"{bounced}{ruled}")
+                f"{bounced}{ruled}{dynamic}")
 
     def curve_line(self) -> str:
         """The bake's error against its run time in one line (core.error_curve), logged after line()."""

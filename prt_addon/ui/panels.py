@@ -116,6 +116,8 @@ class PRT_PT_bake_info(ActiveMeshPanel, bpy.types.Panel):
         draw_status(layout, context, context.active_object)
         column = layout.column(align=True)
         column.label(text=f"Order {meta['order']}, {meta['mode']}, {meta['samples']} samples")
+        if meta.get(storage.DYNAMIC_KEY):
+            column.label(text="Dynamic: in its own frame, against itself only")
         column.label(text=f"{meta['rays']:,} rays in {meta.get('time_s', 0.0):.1f} s")
         if "ray_engine" in meta:
             column.label(text=f"Cast with {meta['ray_engine']}")
