@@ -213,6 +213,25 @@ def test_assets_smoke_run():
     number(found(r"^sphere flat baked with its smooth vertex normals instead, .*: RMS {n} %", out).group(1))
 
 
+def test_dynamic_smoke_run():
+    """Two rotations of the dynamic Suzanne: at rest turning the light changes nothing, so both columns agree; the
+    goals judge the worst rotation; the display wrote the colours validation compared."""
+    out = run_benchmark("dynamic", "--quick")
+    rows = {}
+    for label in ("rest", "(-1,2,0.5) 250°"):
+        match = found(rf"^{re.escape(label)}" + r"\s+{n}" * 8 + "$", out)
+        rows[label] = [number(group, positive=False) for group in match.groups()]
+    assert rows["rest"][0] == rows["rest"][4] and rows["rest"][1] == rows["rest"][5]  # RMS, p99: turned = static
+    assert rows["rest"][3] == rows["(-1,2,0.5) 250°"][3] > 0  # one bake, one estimate
+    worst_rms = goal_line(r"^goal RMS ≤ 2 % against Cycles, every rotation: worst {n} %", out, "<=", 2.0)
+    assert worst_rms == pytest.approx(max(row[0] for row in rows.values()), abs=0.006)
+    goal_line(r"^goal p99 ≤ 10 % against Cycles, every rotation: worst {n} %", out, "<=", 10.0)
+    found(r"^not turning the light: RMS {n}\.\.\.{n} % once turned", out)
+    match = found(r"^display colours × albedo = validation's within {n} of the largest.*?(PASS|MISS)$", out)
+    judged(number(match.group(1), positive=False), "<=", 1e-5, match.group(2))
+    assert match.group(2) == "PASS"  # the same light turned the same way: float32 rounding at most
+
+
 def test_messy_assets_smoke_run():
     out = run_benchmark("messy_assets", "--quick", "--cases", "boxes crossing")
     match = found(r"^boxes crossing\s+\d+\s+\d+\s+\d+\s+{n}\s+{n}\s+(\d+)\s+{n}\s+{n}\s+{n}\s+{n}\s+(?:exact|{n})", out)
