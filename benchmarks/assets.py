@@ -356,14 +356,10 @@ def reference_error(scene_bake: SceneBake, settings: Settings) -> dict:
 def compared_colours(check, ob):
     """The object's rows as validation compares them (its vertices, or its face corners where the bake is per
     corner) → (PRT colours (R, 3), Cycles' passes (k, R, 3), the shading point of each row (R,))."""
-    transfer, meta = storage.read_transfer(ob.data)
+    _, meta = storage.read_transfer(ob.data)
     corner_points = storage.corner_points_of(ob.data)
-    if corner_points is None:
-        rows, albedo = np.arange(len(ob.data.vertices)), check.albedos[ob]
-    else:
-        rows, albedo = corner_points, check.albedos[ob][mesh_arrays.mesh_corner_vertices(ob.data)]
-    colours = validation.prt_colours(transfer[rows], check.lights[meta["order"]], albedo)
-    return colours, np.stack(check.cycles.radiance[ob.name]), rows
+    rows = np.arange(len(ob.data.vertices)) if corner_points is None else corner_points
+    return check.colours(ob, check.lights[meta["order"]]), np.stack(check.cycles.radiance[ob.name]), rows
 
 
 def touching_floor(receiver, rows) -> np.ndarray:
