@@ -252,6 +252,7 @@ class Settings:
     passes: int = validation.DEFAULT_PASSES
     reference_points: int = 2048  # shading points the reference bakes (all of them when fewer)
     workers: int = 1              # the add-on's default
+    ray_engine: str = BakeSettings.ray_engine  # the add-on's default, Auto
 
     @property
     def reference_samples(self) -> int:
@@ -301,7 +302,8 @@ class Row:
 
 
 def bake_scene(names, settings: Settings) -> SceneBake:
-    scene_bake = SceneBake(bpy.context, BakeSettings(samples=settings.bake_samples), names, settings.workers)
+    scene_bake = SceneBake(bpy.context, BakeSettings(samples=settings.bake_samples, ray_engine=settings.ray_engine),
+                           names, settings.workers)
     scene_bake.run()
     return scene_bake
 

@@ -216,8 +216,10 @@ def recorded_rays(caster, receiver, rows, settings):
     return recorder.engine.tree.origins, recorder.engine.tree.directions
 
 
-def time_bare_loop(caster, origins, directions):
-    cast, distance = caster.engine.tree.ray_cast, caster.engine.max_distance
+def time_bare_loop(engine, origins, directions):
+    """Seconds of a bare Python loop of BVHTree.ray_cast calls over the rays (one origin and one direction per ray)
+    through the BVHTree engine's tree, to its reach."""
+    cast, distance = engine.tree.ray_cast, engine.max_distance
     start = time.perf_counter()
     for o, d in zip(origins, directions):
         cast(o, d, distance)
@@ -249,7 +251,7 @@ def ray_cast_efficiency(caster, receivers, config):
             for n, (rows, (origins, directions)) in enumerate(zip(chunks, replays)):
                 bake_times[repeat, n], cast = time_bake_chunk(caster, receiver, rows, settings)
                 assert cast == len(directions), "the replay must cast exactly the bake's rays"
-                bare_times[repeat, n] = time_bare_loop(caster, origins, directions)
+                bare_times[repeat, n] = time_bare_loop(caster.engine, origins, directions)
     finally:
         gc.unfreeze()
     best_bake, best_bare = bake_times.min(0).sum(), bare_times.min(0).sum()

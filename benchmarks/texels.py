@@ -61,15 +61,21 @@ FULL = Sizes(1024, 256, 4096, 1000, 8192, (1, 16), 256, 64, 2, (160, 120), 0, ("
 QUICK = Sizes(64, 32, 64, 100, 1024, (1,), 64, 8, 2, (40, 30), 32, ("auto",))
 
 
-def room(sizes: Sizes, workers):
+def room_scene(sizes: Sizes) -> bake.BakeSettings:
+    """A fresh file with the demo scene, its floor and walls stored per texel at the sizes' resolution; the room's
+    bake settings (order 4, shadowed, to a 1 % target)."""
     bpy.ops.wm.read_homefile(use_empty=True)
     sample_scenes.build_demo_scene()
-    resolution = sizes.resolution
-    settings = bake.BakeSettings(order=4, samples=sizes.room_samples, target_error=0.01,
-                                 max_samples=sizes.room_max_samples)
     for name in ROOM_TEXELS:
         ob = bpy.data.objects[name]
-        ob.prt_storage, ob.prt_resolution, ob.prt_uv_map = "texel", resolution, sample_scenes.UV_MAP
+        ob.prt_storage, ob.prt_resolution, ob.prt_uv_map = "texel", sizes.resolution, sample_scenes.UV_MAP
+    return bake.BakeSettings(order=4, samples=sizes.room_samples, target_error=0.01,
+                             max_samples=sizes.room_max_samples)
+
+
+def room(sizes: Sizes, workers):
+    settings = room_scene(sizes)
+    resolution = sizes.resolution
     start = time.perf_counter()
     scene_bake = SceneBake(bpy.context, settings, workers=workers)
     summary = scene_bake.run()
