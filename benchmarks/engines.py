@@ -10,7 +10,9 @@ depend on the engine's answers (a round's rays are fixed by the seed), so both e
    or neither (unexplained).
 2. Casts alone: rays/s of `occluded` over the recorded batches, the engines alternating batch by batch, best of
    the passes; Embree ÷ BVHTree (goal ≥ 15×) on the demo and on the demo with its torus subdivided three times
-   (1.4 M triangles), the rays of 2048 floor and wall vertices.
+   (1.4 M triangles), the rays of 2048 floor and wall vertices. Beside them a bare Python loop of BVHTree.ray_cast
+   calls over the same rays (the baseline issue 32 measured; the BVHTree engine maps ray_cast over them in C) and
+   Embree ÷ that loop.
 3. The whole demo bake at 256 samples with 2 workers: wall time, BVHTree ÷ Embree (goal ≥ 5×); and one process's
    bake split into casting (occluded, hits), the contact search (nearest, BVHTree in both) and the rest.
 4. Memory: resident memory each engine adds, built over the dense scene (the Embree engine holds the contact
@@ -21,9 +23,16 @@ depend on the engine's answers (a round's rays are fixed by the seed), so both e
 6. Error against run time: each engine's curve for the demo as its bake reports it (after each round and after the
    bounces: seconds, rays, estimated RMS error), printed and drawn in one figure (--plot): the Final bakes of
    section 5; in --quick, the demo at 64 samples with a 2 % target error.
+7. Same answers (benchmarks/engine_answers.py): the demo and every case of benchmarks/assets.py baked by each
+   engine, their transfers point by point against the bakes' own noise (a z-test), and both bakes against one
+   Cycles render (goal: the RMS moves ≤ 0.1 points).
+8. The texel room of benchmarks/texels.py (1024², 1 % target) with 2 workers, once per engine: wall time, BVHTree ÷
+   Embree (goal ≥ 3×), and one process's bake split into casting and the rest.
+Sections 3, 5, 6 and 8 bake whole scenes (benchmarks/engine_bakes.py).
 
-Run from the repository root:  .venv/bin/python benchmarks/engines.py [--quick | --final] [--json PATH]
-[--plot PNG] [--assets FOLDER]   (--final: sections 5 and 6 alone)
+Run from the repository root:  .venv/bin/python benchmarks/engines.py [--quick | --final] [--answers] [--texels]
+[--json PATH] [--plot PNG] [--assets FOLDER]   (--final: sections 5 and 6; --answers: 7; --texels: 8; any of them
+together; none: all)
 """
 
 import argparse
@@ -40,17 +49,18 @@ sys.path.insert(0, ROOT)
 import bpy  # noqa: E402  (bpy before mathutils, which the core imports)
 import numpy as np  # noqa: E402
 
-from benchmarks import assets, engine_curves  # noqa: E402
-from prt_addon.blender.execute import execute, local_executor  # noqa: E402
-from prt_addon.blender.plan import plan_bake  # noqa: E402
-from prt_addon.blender.request import read_request, ray_engine_label  # noqa: E402
+from benchmarks import assets, engine_curves, texels  # noqa: E402
+from benchmarks.bake import time_bare_loop  # noqa: E402
+from benchmarks.engine_answers import same_answers_cases  # noqa: E402
+from benchmarks.engine_bakes import ENGINES, curve_bakes, final_bakes, planned, texel_room, whole_bakes  # noqa: E402
+from prt_addon.blender.execute import execute  # noqa: E402
+from prt_addon.blender.request import ray_engine_label  # noqa: E402
 from prt_addon.commands.common import schema_registered, write_json  # noqa: E402
-from prt_addon.core import bake, engines, executors, job, presets  # noqa: E402
+from prt_addon.core import bake, engines, executors, job  # noqa: E402
 
-ENGINES = ("embree", "bvhtree")
 EDGE = 1e-4   # barycentric margin within which float32 rounding decides whether a ray crosses a face
 TIE = 1e-5    # relative distance within which two faces are at one distance
-GOALS = {"agreement": (">=", 99.99), "casts": (">=", 15.0), "bake": (">=", 5.0)}  # per cent, ratios
+GOALS = {"agreement": (">=", 99.99), "casts": (">=", 15.0), "bake": (">=", 5.0), "texels": (">=", 3.0)}
 QUICK_CASES = ["sphere flat", "cylinder"]
 
 
@@ -73,31 +83,6 @@ class Recording:
 
     def nearest(self, points, radius):
         return self.engine.nearest(points, radius)
-
-
-class Timed:
-    """Stands in for a bake's engine: answers with it, adding up the seconds of each question."""
-
-    def __init__(self, engine):
-        self.engine, self.max_distance, self.seconds = engine, engine.max_distance, Counter()
-
-    def __getattr__(self, question):
-        answer = getattr(self.engine, question)
-
-        def timed(*arguments):
-            start = time.perf_counter()
-            try:
-                return answer(*arguments)
-            finally:
-                self.seconds[question] += time.perf_counter() - start
-        return timed
-
-
-def planned(settings, objects=None):
-    """The bake of the scene as it is now: its plan, its ray caster built."""
-    plan = plan_bake(read_request(bpy.context, settings, objects))
-    plan.occluders.ray_caster()
-    return plan
 
 
 def rays_in(batches) -> int:
@@ -188,11 +173,12 @@ def reasons_text(reasons: dict) -> str:
 
 # -- 2. casts alone ------------------------------------------------------------------------------------------------
 def casts_alone(caster, batches, passes: int) -> dict:
-    """Seconds of each engine's `occluded` over the batches, alternating batch by batch, the best of `passes` for
-    each batch; rays/s and Embree ÷ BVHTree."""
+    """Seconds of each engine's `occluded` over the batches and of a bare loop of BVHTree.ray_cast calls over the
+    same rays (the baseline issue 32 measured), alternating batch by batch, the best of `passes` for each batch;
+    rays/s, Embree ÷ the BVHTree engine and Embree ÷ the bare loop."""
     built = {"embree": caster.engine.engine,
              "bvhtree": engines.build("bvhtree", caster.vertices, caster.triangles, caster.engine.max_distance)}
-    best = {name: np.full(len(batches), np.inf) for name in ENGINES}
+    best = {name: np.full(len(batches), np.inf) for name in (*ENGINES, "bare")}
     gc.collect()
     for _ in range(passes):
         for index, (origins, directions, live) in enumerate(batches):
@@ -200,10 +186,22 @@ def casts_alone(caster, batches, passes: int) -> dict:
                 start = time.perf_counter()
                 built[name].occluded(origins, directions, live)
                 best[name][index] = min(best[name][index], time.perf_counter() - start)
+            bare = time_bare_loop(built["bvhtree"], *ray_lists(origins, directions, live))
+            best["bare"][index] = min(best["bare"][index], bare)
     rays = rays_in(batches)
-    rates = {name: rays / best[name].sum() for name in ENGINES}
+    rates = {name: rays / seconds.sum() for name, seconds in best.items()}
     return {"rays": rays, "triangles": len(caster.triangles), "rays_per_s": rates,
-            "ratio": rates["embree"] / rates["bvhtree"]}
+            "ratio": rates["embree"] / rates["bvhtree"], "ratio_to_bare": rates["embree"] / rates["bare"]}
+
+
+def ray_lists(origins, directions, live):
+    """A batch's rays as a bare loop takes them, one Python list of an origin and one of a direction per ray (the
+    same list for a group's rays), made before the loop is timed."""
+    counts = directions.shape[1] if live is None else np.count_nonzero(live, axis=1)
+    flat = directions.reshape(-1, 3) if live is None else directions.reshape(-1, 3)[live.ravel()]
+    per_ray = np.repeat(np.arange(len(origins)), counts)
+    groups = origins.tolist()
+    return [groups[group] for group in per_ray.tolist()], flat.tolist()
 
 
 def room_rays(count: int, quick: bool):
@@ -224,36 +222,6 @@ def room_rays(count: int, quick: bool):
     return caster, caster.engine.batches
 
 
-# -- 3. the whole demo bake ----------------------------------------------------------------------------------------
-def whole_bakes(samples: int, passes: int) -> dict:
-    """The demo bake with 2 workers, the engines alternating, best of `passes`; and one process's bake, timed by
-    question."""
-    walls, split = {name: [] for name in ENGINES}, {}
-    for _ in range(passes):
-        for name in ENGINES:
-            assets.fresh_file()
-            assets.sample_scenes.build_demo_scene()
-            start = time.perf_counter()
-            plan = planned(bake.BakeSettings(samples=samples, ray_engine=name))
-            summary = execute(plan, local_executor(2)).run().summary
-            walls[name].append(time.perf_counter() - start)
-    for name in ENGINES:
-        assets.fresh_file()
-        assets.sample_scenes.build_demo_scene()
-        start = time.perf_counter()
-        plan = planned(bake.BakeSettings(samples=samples, ray_engine=name))
-        caster = plan.occluders.ray_caster()
-        caster.engine = Timed(caster.engine)
-        execute(plan, executors.InProcess()).run()
-        total = time.perf_counter() - start
-        casting = caster.engine.seconds["occluded"] + caster.engine.seconds["hits"]
-        split[name] = {"total_s": total, "casting_s": casting, "contact_s": caster.engine.seconds["nearest"],
-                       "rest_s": total - casting - caster.engine.seconds["nearest"]}
-    best = {name: min(times) for name, times in walls.items()}
-    return {"samples": samples, "rays": summary.rays, "wall_s": walls, "best_s": best,
-            "ratio": best["bvhtree"] / best["embree"], "one_process": split}
-
-
 # -- 4. memory -----------------------------------------------------------------------------------------------------
 def resident_bytes() -> int:
     with open("/proc/self/statm") as statm:
@@ -271,42 +239,6 @@ def engine_memory(caster) -> dict:
     return {"triangles": len(caster.triangles), "bytes": added, "embree_scene": added["embree"] - added["bvhtree"]}
 
 
-# -- 5. the Final preset ------------------------------------------------------------------------------------------
-def final_bakes(curves: dict) -> dict:
-    """The demo baked with the Final preset and 2 workers by each engine: wall seconds and the bake's phases; each
-    bake's error curve into `curves`."""
-    found = {}
-    for name in ENGINES:
-        assets.fresh_file()
-        assets.sample_scenes.build_demo_scene()
-        start = time.perf_counter()
-        plan = planned(bake.BakeSettings(**presets.preset_values("final"), ray_engine=name))
-        summary = execute(plan, local_executor(2)).run().summary
-        phases, wall = summary.phases_s, time.perf_counter() - start
-        split = {"rays_s": phases["rays_s"], "bounces_s": phases["gather_setup_s"] + phases["bounces_s"],
-                 "error_s": phases["bounce_error_s"]}
-        found[name] = {"wall_s": wall, **split, "rest_s": wall - sum(split.values()), "load": os.getloadavg()}
-        curves[name] = summary.error_curve
-        print(f"   {name:8} {wall:7.1f} s: rays {split['rays_s']:6.1f} s, bounces {split['bounces_s']:6.1f} s, "
-              f"their error {split['error_s']:6.1f} s, the rest {found[name]['rest_s']:5.1f} s  (load average "
-              f"{' '.join(f'{load:.1f}' for load in found[name]['load'])})", flush=True)
-    found["ratio"] = found["bvhtree"]["wall_s"] / found["embree"]["wall_s"]
-    print(f"   BVHTree ÷ Embree wall time {found['ratio']:.2f}×")
-    return found
-
-
-# -- 6. error against run time ------------------------------------------------------------------------------------
-def curve_bakes(settings) -> dict:
-    """{engine: the demo bake's error curve (core.error_curve rows)} with 2 workers."""
-    curves = {}
-    for name in ENGINES:
-        assets.fresh_file()
-        assets.sample_scenes.build_demo_scene()
-        plan = planned(replace(settings, ray_engine=name))
-        curves[name] = execute(plan, local_executor(2)).run().summary.error_curve
-    return curves
-
-
 # -- the run -------------------------------------------------------------------------------------------------------
 def verdict(key, value) -> str:
     relation, goal = GOALS[key]
@@ -317,8 +249,12 @@ def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description="Embree and BVHTree side by side")
     which = parser.add_mutually_exclusive_group()
     which.add_argument("--quick", action="store_true", help="smoke run: two small cases, 64 samples, one pass, the "
-                       "dense scene subdivided once, no Final bakes")
-    which.add_argument("--final", action="store_true", help="only section 5: the Final preset's bakes")
+                       "dense scene subdivided once, Cycles 2 × 16 samples, the texel room at 64², no Final bakes")
+    which.add_argument("--final", action="store_true", help="sections 5 and 6: the Final preset's bakes and their "
+                       "error against run time")
+    for flag, section in (("answers", "section 7: the same answers, transfers and against Cycles"),
+                          ("texels", "section 8: the texel room")):
+        parser.add_argument(f"--{flag}", action="store_true", help=section)
     parser.add_argument("--json", help="also write the figures as JSON here")
     parser.add_argument("--plot", default="engine_curves.png", help="the figure of both engines' error against run "
                         "time on the demo (default: %(default)s)")
@@ -338,25 +274,50 @@ def run(args) -> int:
           + ("  (quick: the goals are for the full run)" if args.quick else ""), flush=True)
     started = time.perf_counter()
     figures = {"quick": args.quick}
-    if not args.final:
+    every = not (args.final or args.answers or args.texels)  # no section named: all of them
+    if every:
         figures.update(engines_compared(args.quick))
-    if not args.quick:
+    if (every and not args.quick) or args.final:
         print(f"\n5. The Final preset on the demo, 2 workers (cpu count {os.cpu_count()})")
         curves = {}
         figures["final"] = final_bakes(curves)
-    else:
-        curves = curve_bakes(bake.BakeSettings(samples=64, target_error=0.02, max_samples=1024))
-    what = "the Final preset" if not args.quick else "64 samples, target 2 %"
-    print(f"\n6. Error against run time, the demo with {what}, as each bake reports it")
-    print("\n".join(engine_curves.printed(curves)))
-    engine_curves.plot(curves, args.plot, f"The demo, {what}: estimated error against time")
-    print(f"   wrote {os.path.abspath(args.plot)}")
-    figures["curves"] = {name: [asdict(row) for row in rows] for name, rows in curves.items()}
+    if every or args.final:
+        if args.quick:
+            curves = curve_bakes(bake.BakeSettings(samples=64, target_error=0.02, max_samples=1024))
+        what = "the Final preset" if not args.quick else "64 samples, target 2 %"
+        print(f"\n6. Error against run time, the demo with {what}, as each bake reports it")
+        print("\n".join(engine_curves.printed(curves)))
+        engine_curves.plot(curves, args.plot, f"The demo, {what}: estimated error against time")
+        print(f"   wrote {os.path.abspath(args.plot)}")
+        figures["curves"] = {name: [asdict(row) for row in rows] for name, rows in curves.items()}
+    if every or args.answers:
+        figures["same_answers"] = answers(args.quick)
+    if every or args.texels:
+        figures["texel_room"] = room(args.quick)
     print(f"\ntotal {(time.perf_counter() - started) / 60:.1f} min")
     if args.json:
         write_json(args.json, figures)
         print(f"wrote {os.path.abspath(args.json)}")
     return 0
+
+
+def answers(quick: bool) -> list:
+    """Section 7, at benchmarks/assets.py's sizes (its quick ones with --quick)."""
+    settings = (assets.Settings(bake_samples=64, cycles_samples=16, passes=2) if quick else assets.Settings())
+    print(f"\n7. Same answers: each case baked by each engine ({settings.bake_samples} samples, one seed), the "
+          f"transfers point by point against their own noise, and both bakes against one Cycles render "
+          f"({settings.passes} × {settings.cycles_samples} samples)")
+    return same_answers_cases(QUICK_CASES if quick else [case.name for case in assets.CASES], settings)
+
+
+def room(quick: bool) -> dict:
+    """Section 8, at benchmarks/texels.py's sizes (its quick ones with --quick)."""
+    sizes = texels.QUICK if quick else texels.FULL
+    print(f"\n8. The texel room of benchmarks/texels.py: floor and walls at {sizes.resolution} × {sizes.resolution}, "
+          f"1 % target, once per engine")
+    found = texel_room(sizes)
+    print(f"   BVHTree ÷ Embree wall time {found['ratio']:.2f}×  {verdict('texels', found['ratio'])}", flush=True)
+    return found
 
 
 def engines_compared(quick: bool) -> dict:
@@ -374,7 +335,7 @@ def engines_compared(quick: bool) -> dict:
     print(f"   agreement on the face hit, worst case {100 * worst:.4f} %  {verdict('agreement', 100 * worst)}",
           flush=True)
 
-    print("\n2. Casts alone: occluded over the bake's recorded rays, best of "
+    print("\n2. Casts alone: occluded over the bake's recorded rays, and a bare ray_cast loop over them, best of "
           f"{passes} pass{'es' * (passes > 1)}")
     assets.fresh_file()
     assets.sample_scenes.build_demo_scene()
@@ -384,7 +345,8 @@ def engines_compared(quick: bool) -> dict:
     for name, found in casts.items():
         rate = found["rays_per_s"]
         print(f"   {name:6} {found['triangles']:8d} faces {found['rays']:9d} rays: Embree "
-              f"{rate['embree'] / 1e6:6.3f} M rays/s, BVHTree {rate['bvhtree'] / 1e6:6.3f} M rays/s, Embree ÷ "
+              f"{rate['embree'] / 1e6:6.3f} M rays/s, BVHTree {rate['bvhtree'] / 1e6:6.3f} M rays/s, bare ray_cast "
+              f"loop {rate['bare'] / 1e6:6.3f} M rays/s; Embree ÷ bare loop {found['ratio_to_bare']:5.2f}×, Embree ÷ "
               f"BVHTree {found['ratio']:5.2f}×  {verdict('casts', found['ratio'])}", flush=True)
     memory = engine_memory(dense[0])
     del dense
