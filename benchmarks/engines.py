@@ -30,9 +30,9 @@ depend on the engine's answers (a round's rays are fixed by the seed), so both e
    Embree (goal ≥ 3×), and one process's bake split into casting and the rest.
 Sections 3, 5, 6 and 8 bake whole scenes (benchmarks/engine_bakes.py).
 
-Run from the repository root:  .venv/bin/python benchmarks/engines.py [--quick | --final] [--answers] [--texels]
-[--json PATH] [--plot PNG] [--assets FOLDER]   (--final: sections 5 and 6; --answers: 7; --texels: 8; any of them
-together; none: all)
+Run from the repository root:  .venv/bin/python benchmarks/engines.py [--quick | --final] [--rays] [--answers]
+[--texels] [--json PATH] [--plot PNG] [--assets FOLDER]   (--rays: sections 1-4; --final: 5 and 6; --answers: 7;
+--texels: 8; any of them together; none: all)
 """
 
 import argparse
@@ -252,7 +252,8 @@ def main(argv=None) -> int:
                        "dense scene subdivided once, Cycles 2 × 16 samples, the texel room at 64², no Final bakes")
     which.add_argument("--final", action="store_true", help="sections 5 and 6: the Final preset's bakes and their "
                        "error against run time")
-    for flag, section in (("answers", "section 7: the same answers, transfers and against Cycles"),
+    for flag, section in (("rays", "sections 1 to 4: the rays, the demo bake and memory"),
+                          ("answers", "section 7: the same answers, transfers and against Cycles"),
                           ("texels", "section 8: the texel room")):
         parser.add_argument(f"--{flag}", action="store_true", help=section)
     parser.add_argument("--json", help="also write the figures as JSON here")
@@ -274,8 +275,8 @@ def run(args) -> int:
           + ("  (quick: the goals are for the full run)" if args.quick else ""), flush=True)
     started = time.perf_counter()
     figures = {"quick": args.quick}
-    every = not (args.final or args.answers or args.texels)  # no section named: all of them
-    if every:
+    every = not (args.rays or args.final or args.answers or args.texels)  # no section named: all of them
+    if every or args.rays:
         figures.update(engines_compared(args.quick))
     if (every and not args.quick) or args.final:
         print(f"\n5. The Final preset on the demo, 2 workers (cpu count {os.cpu_count()})")
