@@ -26,8 +26,8 @@ depend on the engine's answers (a round's rays are fixed by the seed), so both e
 7. Same answers (benchmarks/engine_answers.py): the demo and every case of benchmarks/assets.py baked by each
    engine, their transfers point by point against the bakes' own noise (a z-test), and both bakes against one
    Cycles render (goal: the RMS moves ≤ 0.1 points).
-8. The texel room of benchmarks/texels.py (1024², 1 % target) with 2 workers, once per engine: wall time, BVHTree ÷
-   Embree (goal ≥ 3×), and one process's bake split into casting and the rest.
+8. The texel room of benchmarks/texels.py (1024², 1 % target) with 2 workers, the engines alternating, best of 2:
+   wall time, BVHTree ÷ Embree (goal ≥ 3×); and one process's bake split into casting and the rest.
 Sections 3, 5, 6 and 8 bake whole scenes (benchmarks/engine_bakes.py).
 
 Run from the repository root:  .venv/bin/python benchmarks/engines.py [--quick | --final] [--rays] [--answers]
@@ -313,10 +313,10 @@ def answers(quick: bool) -> list:
 
 def room(quick: bool) -> dict:
     """Section 8, at benchmarks/texels.py's sizes (its quick ones with --quick)."""
-    sizes = texels.QUICK if quick else texels.FULL
+    sizes, passes = (texels.QUICK, 1) if quick else (texels.FULL, 2)
     print(f"\n8. The texel room of benchmarks/texels.py: floor and walls at {sizes.resolution} × {sizes.resolution}, "
-          f"1 % target, once per engine")
-    found = texel_room(sizes)
+          f"1 % target, {sizes.room_samples} samples first ({sizes.room_max_samples} at most), best of {passes}")
+    found = texel_room(sizes, passes)
     print(f"   BVHTree ÷ Embree wall time {found['ratio']:.2f}×  {verdict('texels', found['ratio'])}", flush=True)
     return found
 

@@ -133,8 +133,8 @@ def test_engines_smoke_run(tmp_path):
     match = found(r"^   largest move of the RMS against Cycles {n} points  goal <= 0\.1: (PASS|MISS)", out)
     judged(number(match.group(1), positive=False), "<=", 0.1, match.group(2))  # the engines may agree to the bit
     for engine in ("embree", "bvhtree"):
-        match = found(rf"^   {engine}\s+2 workers\s+{{n}} s \(\d+ rays, load average .*\); one process\s+{{n}} s: "
-                      rf"casting\s+{{n}} s, contact search\s+{{n}} s, the rest\s+{{n}} s", out)
+        match = found(rf"^   {engine}\s+2 workers\s+{{n}} s \(of [\d. ]+\); one process\s+{{n}} s: casting\s+{{n}} s, "
+                      rf"contact search\s+{{n}} s, the rest\s+{{n}} s  \(load average", out)
         total, casting, contact, rest = (number(group, positive=False) for group in match.groups()[1:])
         assert casting + contact + rest == pytest.approx(total, abs=0.2) and total > 0
     goal_line(r"^   BVHTree ÷ Embree wall time {n}×  goal >= 3:", out, ">=", 3)
