@@ -11,8 +11,9 @@ depend on the engine's answers (a round's rays are fixed by the seed), so both e
 2. Casts alone: rays/s of `occluded` over the recorded batches, the engines alternating batch by batch, best of
    the passes; Embree ÷ BVHTree (goal ≥ 15×) on the demo and on the demo with its torus subdivided three times
    (1.4 M triangles), the rays of 2048 floor and wall vertices. Beside them a bare Python loop of BVHTree.ray_cast
-   calls over the same rays (the baseline issue 32 measured; the BVHTree engine maps ray_cast over them in C) and
-   Embree ÷ that loop.
+   calls over the same rays, given as Python lists (the rate one call per ray allows, which the BVHTree engine's
+   map over ray_cast nearly reaches; issue 32's loop ran at half of it, as one over numpy rows does), and Embree ÷
+   that loop.
 3. The whole demo bake at 256 samples with 2 workers: wall time, BVHTree ÷ Embree (goal ≥ 5×); and one process's
    bake split into casting (occluded, hits), the contact search (nearest, BVHTree in both) and the rest.
 4. Memory: resident memory each engine adds, built over the dense scene (the Embree engine holds the contact
@@ -174,8 +175,8 @@ def reasons_text(reasons: dict) -> str:
 # -- 2. casts alone ------------------------------------------------------------------------------------------------
 def casts_alone(caster, batches, passes: int) -> dict:
     """Seconds of each engine's `occluded` over the batches and of a bare loop of BVHTree.ray_cast calls over the
-    same rays (the baseline issue 32 measured), alternating batch by batch, the best of `passes` for each batch;
-    rays/s, Embree ÷ the BVHTree engine and Embree ÷ the bare loop."""
+    same rays, alternating batch by batch, the best of `passes` for each batch; rays/s, Embree ÷ the BVHTree engine
+    and Embree ÷ the bare loop."""
     built = {"embree": caster.engine.engine,
              "bvhtree": engines.build("bvhtree", caster.vertices, caster.triangles, caster.engine.max_distance)}
     best = {name: np.full(len(batches), np.inf) for name in (*ENGINES, "bare")}
