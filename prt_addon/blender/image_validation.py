@@ -95,18 +95,13 @@ def validate_image(context, camera: str | None = None, samples: int = 64, passes
         notes.append("interreflected bakes: Cycles bounces light between white surfaces, the bake between its "
                      "materials' albedo; the two agree where that albedo is white")
     with tempfile.TemporaryDirectory(prefix="prt_validate_image_") as folder, \
-            _render_settings_restored(scene):
+            render_settings_restored(scene):
         scene.camera = camera_object
         scene.render.resolution_x, scene.render.resolution_y = resolution
         scene.render.resolution_percentage = 100
-        start = time.perf_counter()
-        shown = _render_display(context, totals, os.path.join(folder, "prt.exr"))
-        display_time = time.perf_counter() - start
+        shown, cycles, display_time, cycles_time = band_limited_renders(context, receivers, totals, order, samples,
+                                                                        passes, bounces, folder)
         covered = _render_mask(context, receivers, os.path.join(folder, "mask.exr"))
-        start = time.perf_counter()
-        environment = lobes.reconstruct_equirect(totals[order], *ENVIRONMENT_SIZE)
-        cycles = _render_cycles(context, receivers, environment, samples, passes, bounces, folder)
-        cycles_time = time.perf_counter() - start
     lit = _lit_pixels(covered, cycles.mean(axis=0))
     if not lit.any():
         raise InputError(f"camera {camera_object.name!r} sees no lit pixel of a baked mesh")
@@ -118,8 +113,23 @@ def validate_image(context, camera: str | None = None, samples: int = 64, passes
                        heatmap_path, notes)
 
 
+def band_limited_renders(context, receivers, totals, order, samples, passes, bounces, folder):
+    """The camera's view (the scene's camera and resolution) twice under the band-limited light totals[order]
+    ({order: (3, order²)}, as blender.validation.scene_light gives it): EEVEE showing the PRT display without
+    albedo, (H·W, 3), and Cycles' `passes`, (passes, H·W, 3), every mesh white; linear radiance, rows from the
+    bottom; then each one's seconds. Files go in `folder`; the caller puts the render settings back
+    (render_settings_restored)."""
+    start = time.perf_counter()
+    shown = _render_display(context, totals, os.path.join(folder, "prt.exr"))
+    display_time = time.perf_counter() - start
+    start = time.perf_counter()
+    environment = lobes.reconstruct_equirect(totals[order], *ENVIRONMENT_SIZE)
+    cycles = _render_cycles(context, receivers, environment, samples, passes, bounces, folder)
+    return shown, cycles, display_time, time.perf_counter() - start
+
+
 @contextmanager
-def _render_settings_restored(scene):
+def render_settings_restored(scene):
     """Puts back what the renders below change beyond blender.cycles.scene_restored: the camera, resolution,
     output, view transform, EEVEE's and Workbench's settings, the PRT display switches and object colours."""
     render, shading, display = scene.render, scene.display.shading, scene.prt_display
@@ -305,7 +315,7 @@ def compare_images(context, resolution=(160, 90), samples=LIGHT_SAMPLES, passes=
     if not scene.prt_display.show_prt:
         raise InputError("the PRT display is off: EEVEE would not show PRT")
     with tempfile.TemporaryDirectory(prefix="prt_compare_images_") as folder, \
-            _render_settings_restored(scene):
+            render_settings_restored(scene):
         scene.render.film_transparent = True
         scene.render.resolution_x, scene.render.resolution_y = resolution
         scene.render.resolution_percentage = 100
