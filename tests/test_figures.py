@@ -11,6 +11,9 @@ import pytest
 
 from conftest import ROOT
 
+# The manual's pictures are made on one Blender, the newest: once per CI run, as the studies.
+pytestmark = pytest.mark.study
+
 NUMBER = r"([-+]?\d+(?:\.\d+)?)"
 SHADOW_RATIO = 0.8  # (a): Cycles' floor at the shadow ≤ this × PRT's there; seen 0.55 (quick) to 0.6
 # (b): the spheres 0.25 m from the edge, blended with a probe across it, differ from Cycles 10-13 % (quick); those
