@@ -6,9 +6,8 @@ a floor of a few quads, larger than it. The asset is baked at the defaults (orde
 floor is an occluder only), validated against Cycles corner by corner where its vertices are split, and the bake's
 actual error is measured against a many-ray reference bake (16 × the samples, another seed) at a random sample
 of the same shading points, in the measure of the bake's own estimate: RMS over points of ‖T − T_ref‖ ÷
-‖T_unshadowed‖ (benchmarks/convergence.py's coefficient_error). The reference measures the points whose normal is
-against their face as Cycles shades them, which the bake sets black by rule, and the estimate holds that rule's
-doubt.
+‖T_unshadowed‖ (benchmarks/convergence.py's coefficient_error); the estimate holds the noise and the doubt of the
+points a rule set black.
 
 Goals: every asset RMS ≤ 2 % and p99 ≤ 10 % against Cycles; the demo scene RMS ≤ 1 %; actual ÷ estimated error
 within 1/1.5..1.5 for every case.
@@ -18,7 +17,6 @@ Run from the repository root:  .venv/bin/python benchmarks/assets.py [--quick] [
 """
 
 import argparse
-import dataclasses
 from dataclasses import asdict, dataclass, field
 import math
 import os
@@ -315,24 +313,11 @@ def validate(names, settings: Settings):
     return check, comparisons, check.report(comparisons).as_dict()
 
 
-def as_cycles_shades(receiver):
-    """The receiver with its points against their faces measured as Cycles shades them instead of set black by rule
-    (docs/cycles_conventions.md, R2): normal −N, clipped by −Ng's plane (its least reversed corner's), by rays."""
-    if receiver.against is None:
-        return receiver
-    rows = receiver.against
-    normals = np.where(rows[:, None], -receiver.normals, receiver.normals)
-    clip = np.zeros_like(normals) if receiver.clip is None else receiver.clip.copy()
-    clip[rows] = -receiver.against_face[rows]
-    return dataclasses.replace(receiver, normals=normals, clip=clip, against=None, against_face=None)
-
-
 def reference_error(scene_bake: SceneBake, settings: Settings) -> dict:
     """The bake's actual error against a reference bake of 16 × the samples with another seed, at up to
     `reference_points` random shading points (all of them when fewer), and its own estimate at those points (the
-    noise and the rules' doubt). The reference measures the points against their faces as Cycles shades them, so
-    the actual error holds what that rule made black."""
-    receivers = [as_cycles_shades(receiver.layout.receiver) for receiver in scene_bake.plan.receivers]
+    noise and the rules' doubt)."""
+    receivers = [receiver.layout.receiver for receiver in scene_bake.plan.receivers]
     owners = np.concatenate([np.full(len(r.positions), k) for k, r in enumerate(receivers)])
     indices = np.concatenate([np.arange(len(r.positions)) for r in receivers])
     chosen = np.arange(len(owners))

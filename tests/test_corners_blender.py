@@ -290,10 +290,11 @@ def test_a_weighted_normal_box_on_the_floor_is_black_where_it_rests_and_agrees_w
 
 def test_corners_against_their_faces_are_black_and_do_not_darken_their_neighbours(empty_scene):
     """A 4 × 4 grid with every other face (a chessboard) wound down while every corner's custom normal points up,
-    as an OBJ's `vn` lines give them. Cycles' bake is black at the corners wound against their normals (README,
-    R2) and sees the whole sky from the others: nothing lies above the plane. So the downward-wound corners are
-    stored as 0 and every other corner as the unshadowed lobe about +z in closed form, bit for bit (a point of open
-    sky casts no ray), though each of its vertex's faces wound the other way seems, by its winding, to face it."""
+    as an OBJ's `vn` lines give them. Cycles shades the corners wound against their normals from behind, gathering
+    the directions in front of both −N and −Ng (README, R2): exactly reversed, none, so they are black; the others
+    see the whole sky: nothing lies above the plane. So the downward-wound corners are stored as 0 (without a ray)
+    and every other corner as the unshadowed lobe about +z in closed form, bit for bit (a point of open sky casts no
+    ray), though each of its vertex's faces wound the other way seems, by its winding, to face it."""
     plane = grid("Chessboard", cuts=4)
     reversing = [face.index for face in plane.data.polygons if (face.index + face.index // 4) % 2]
     edited = bmesh.new()

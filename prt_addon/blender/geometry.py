@@ -27,10 +27,10 @@ def mesh_shading_points(mesh, positions=None, corner_triangles=None) -> corners.
     face_normals = corners.first_triangle_normals(positions[corner_vertices], corner_triangles)
     against = corners.against_faces(corner_normals, face_normals)
     fins = corners.on_fins(corner_vertices, mesh_corner_edges(mesh), mesh_edge_vertices(mesh))
-    clip = sampling.unit_or_zero(np.where(fins[:, None], face_normals, 0.0)) if fins.any() else None
-    if point_domain and not against.any() and clip is None:  # (skipping the grouping saves a third of the gathering)
+    clip = corners.clip_planes(face_normals, against, fins)
+    if point_domain and clip is None:  # (skipping the grouping saves a third of the gathering)
         return corners.unsplit_points(corner_vertices, normals)
-    return corners.shading_points(corner_vertices, corner_normals, len(mesh.vertices), against, clip, face_normals)
+    return corners.shading_points(corner_vertices, corner_normals, len(mesh.vertices), against, clip)
 
 
 def points_to_world(matrix, points: np.ndarray) -> np.ndarray:
@@ -163,10 +163,9 @@ def surface_from_object(ob, depsgraph, notes: list, for_storage: bool = True, al
         notes.append(f"{ob.name!r}: {int((~usable).sum())} vertices are loose or only on zero-area faces; "
                      f"they get zero transfer")
     groups = corners.ray_groups(points.point_vertices, world_normals, len(vertex_normals)) if split else None
-    clip, against_face = (None if planes is None else directions_to_world(matrix, planes)
-                          for planes in (points.clip, points.against_face))
+    clip = None if points.clip is None else directions_to_world(matrix, points.clip)
     receiver = bake.Receiver(ob.name, world_positions, world_normals, bake.Receiver.key_for(ob.name), inward, groups,
-                             surface_step, points.against, clip, against_face)
+                             surface_step, points.against, clip)
     return Surface(receiver, triangles, colours, points.corner_points if split else None, points.split_vertices,
                    points.extra_points)
 

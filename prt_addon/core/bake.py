@@ -66,14 +66,12 @@ class Receiver:
     # (V, 3) unit steps from each vertex into its faces along the surface itself (not tangent to the normal), zero
     # where there is none: where a point lies against another surface is judged a step along them. None: `inward`.
     surface_step: np.ndarray | None = None
-    # (V,) bool: rows whose normal points against their faces, black as Cycles shades them (core.corners); None: none.
+    # (V,) bool: rows whose normal N points against their faces, measured as Cycles shades them, from behind: with
+    # the normal −N, clipped by their face reversed (`clip`; core.corners); None: none.
     against: np.ndarray | None = None
-    # (V, 3) the unit face normal whose plane clips each row's sky (core.corners: the corners at a vertex of an edge
-    # with three or more faces), zero where none does; None: none does.
+    # (V, 3) the unit normal whose plane clips each row's sky (core.corners.clip_planes: the corners at a vertex of an
+    # edge with three or more faces, and those against their faces), zero where none does; None: none does.
     clip: np.ndarray | None = None
-    # (V, 3) the unit face normal of each `against` row's corner nearest to facing it (core.corners), zero elsewhere:
-    # how much sky Cycles leaves it (core.rules.doubt). None: not known, and the doubt is taken at its widest.
-    against_face: np.ndarray | None = None
 
     @staticmethod
     def key_for(name: str) -> int:
@@ -84,8 +82,7 @@ class Receiver:
         def part(values):
             return None if values is None else values[rows]
         return Receiver(self.name, self.positions[rows], self.normals[rows], self.key, part(self.inward),
-                        part(self.ray_groups), part(self.surface_step), part(self.against), part(self.clip),
-                        part(self.against_face))
+                        part(self.ray_groups), part(self.surface_step), part(self.against), part(self.clip))
 
 
 @dataclass

@@ -6,19 +6,25 @@ vertex whose corners share one normal is one point; a vertex whose corners have 
 each seen from its own faces. Points 0..V-1 are the vertices themselves (with the normal of their first corner),
 points V.. the further normals of split vertices, so a mesh without splits has exactly its vertices as points.
 
-A corner whose normal points against its face (an OBJ's `vn` line against the face's winding) is black in Cycles
-(README, "Messy models: what Cycles decides"), whatever light its vertex's other corners with that normal gather: such
-corners are points of their own, marked `against`.
+Cycles clips each corner by its own face's plane (README, "Messy models: what Cycles decides"). Around a closed
+surface the faces meeting at a vertex do that for one point; at a vertex of an edge with three or more faces (a fin on
+a tube) the corners sharing one averaged normal lie on faces that block each other's sky: there each face plane's
+corners are a point of their own, with that plane as its `clip`.
 
-Cycles also clips each corner by its own face's plane (README, "Messy models"). Around a closed surface the faces
-meeting at a vertex do that for one point; at a vertex of an edge with three or more faces (a fin on a tube) the
-corners sharing one averaged normal lie on faces that block each other's sky: there each face plane's corners are a
-point of their own, with that plane as its `clip`.
+A corner whose normal points against its face (an OBJ's `vn` line against the face's winding) Cycles shades from
+behind: it negates N and Ng (`shader_setup_from_ray`, intern/cycles/kernel/geom/shader_data.h, when Ng · view < 0,
+the view being N in a bake) and gathers the directions in front of both, −N's clipped by the plane of −Ng, Ng that
+of the corner's own face (the first triangle holding it, where the vertex-colour bake samples it:
+`bake_targets_populate_pixels_color_attributes`, source/blender/editors/object/object_bake_api.cc). Such corners are
+points of their own, marked `against`, one per face plane, with −Ng as their `clip` (clip_planes); the bake measures
+them with the normal −N (core.estimator).
 """
 
 from dataclasses import dataclass
 
 import numpy as np
+
+from . import sampling
 
 # Normals are compared after rounding to this many decimals: corner normals Blender computes for one smooth fan are
 # the same floats, and custom normals are stored quantised, so this only absorbs float32 round-off.
@@ -32,10 +38,9 @@ class ShadingPoints:
     point_normals: np.ndarray   # (P, 3) the corner normal each point is shaded with
     vertex_count: int
     against: np.ndarray | None = None  # (P,) bool: the point's corners' normal points against their faces; None: none
-    clip: np.ndarray | None = None  # (P, 3) the unit face normal whose plane clips the point's sky, zero for none
-    # (P, 3) for a point against its faces, the unit face normal of its corner nearest to facing it (the widest sky
-    # Cycles leaves it: core.rules.doubt), zero elsewhere; None where `against` is
-    against_face: np.ndarray | None = None
+    # (P, 3) the unit normal whose plane clips the point's sky (its face's, reversed for a point against its face),
+    # zero for none
+    clip: np.ndarray | None = None
 
     @property
     def extra_points(self) -> int:
@@ -78,6 +83,16 @@ def against_faces(corner_normals: np.ndarray, face_normals: np.ndarray) -> np.nd
     return np.einsum("ij,ij->i", corner_normals, face_normals) < 0.0
 
 
+def clip_planes(face_normals: np.ndarray, against: np.ndarray, fins: np.ndarray) -> np.ndarray | None:
+    """(C, 3) the unit normal whose plane clips each corner's sky, zero where none does (None: none does): a corner
+    against its face (C,) is shaded from behind, clipped by its own face reversed (−Ng); one of an edge with three or
+    more faces (`fins` (C,)) by its own face (Ng). `face_normals` (C, 3): first_triangle_normals."""
+    if not (against.any() or fins.any()):
+        return None
+    unit = sampling.unit_or_zero(face_normals)
+    return np.where(against[:, None], -unit, np.where(fins[:, None], unit, 0.0))
+
+
 def on_fins(corner_vertices: np.ndarray, corner_edges: np.ndarray, edge_vertices: np.ndarray) -> np.ndarray:
     """(C,) bool: each corner's vertex (`corner_vertices` (C,)) ends an edge that three or more faces share, from
     each corner's edge (`corner_edges` (C,), the edge to the face's next corner) and the edges' vertices (E, 2)."""
@@ -88,12 +103,10 @@ def on_fins(corner_vertices: np.ndarray, corner_edges: np.ndarray, edge_vertices
 
 
 def shading_points(corner_vertices: np.ndarray, corner_normals: np.ndarray, vertex_count: int,
-                   against: np.ndarray | None = None, clip: np.ndarray | None = None,
-                   face_normals: np.ndarray | None = None) -> ShadingPoints:
+                   against: np.ndarray | None = None, clip: np.ndarray | None = None) -> ShadingPoints:
     """Groups corners (C,) with normals (C, 3) into points, the corners `against` their faces (C,) bool apart from
-    the others (None: none is), and those of each distinct `clip` plane (C, 3) unit face normals, zero for corners
-    not clipped (None: none is); a vertex without corners keeps a zero normal. `face_normals` (C, 3), the corners'
-    face normals (first_triangle_normals), give each point against its faces its `against_face`."""
+    the others (None: none is), and those of each distinct `clip` plane (C, 3) unit normals (clip_planes), zero for
+    corners not clipped (None: none is); a vertex without corners keeps a zero normal."""
     rounded = np.round(np.asarray(corner_normals, dtype=np.float64), NORMAL_DECIMALS) + 0.0  # -0.0 → 0.0
     keys = [corner_vertices.astype(np.float64), rounded] + ([] if against is None else [against.astype(np.float64)])
     keys += [] if clip is None else [np.round(clip, NORMAL_DECIMALS) + 0.0]
@@ -116,30 +129,12 @@ def shading_points(corner_vertices: np.ndarray, corner_normals: np.ndarray, vert
     if against is not None and against.any():
         point_against = np.zeros(len(point_vertices), dtype=bool)
         point_against[point_of_group] = against[first_corner]
-    point_face = None
-    if point_against is not None and face_normals is not None:
-        point_face = _widest_faces(point_of_group[group_of_corner], np.asarray(corner_normals, np.float64),
-                                   np.asarray(face_normals, np.float64), against, len(point_vertices))
     point_clip = None
     if clip is not None and clip.any():
         point_clip = np.zeros((len(point_vertices), 3))
         point_clip[point_of_group] = clip[first_corner]
     return ShadingPoints(point_of_group[group_of_corner], point_vertices, point_normals, vertex_count, point_against,
-                         point_clip, point_face)
-
-
-def _widest_faces(corner_points, corner_normals, face_normals, against, count):
-    """(count, 3): for each point of corners `against` their faces, the unit face normal of its corner with the
-    largest N·Ng (the least reversed, whose sky in Cycles is widest); zero elsewhere."""
-    length = np.linalg.norm(face_normals, axis=1, keepdims=True)
-    unit = np.divide(face_normals, length, out=np.zeros_like(face_normals), where=length > 0)
-    rows = np.flatnonzero(against)
-    dots = np.einsum("ij,ij->i", corner_normals[rows], unit[rows])
-    order = np.lexsort((dots, corner_points[rows]))  # each point's corners, its widest last
-    last = order[np.r_[corner_points[rows][order][1:] != corner_points[rows][order][:-1], True]]
-    found = np.zeros((count, 3))
-    found[corner_points[rows][last]] = unit[rows][last]
-    return found
+                         point_clip)
 
 
 def unsplit_points(corner_vertices: np.ndarray, vertex_normals: np.ndarray) -> ShadingPoints:

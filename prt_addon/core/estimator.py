@@ -24,6 +24,9 @@ WEIGHT_BYTES_PER_BATCH = 1 << 20
 # Basis values that _weighted_means evaluates at once: 4M values = 32 MB in float64 (16 MB for a shared group's
 # float32, weight_dtype), whatever the order and rays.
 REPLICATE_VALUES_AT_ONCE = 1 << 22
+# A row against its face sees (1 + N·Ng)/2 of the sky (core.corners): at most this much over −1 it sees a lune of
+# at most half this, float rounding of an exactly reversed normal, which Cycles finds black (0.000 measured).
+EMPTY_LUNE = 1e-9
 
 
 def provably_unoccluded(positions, normals, hull, offset) -> np.ndarray:
@@ -41,12 +44,17 @@ def provably_unoccluded(positions, normals, hull, offset) -> np.ndarray:
 
 def bake_chunk(caster, receiver: Receiver, rows: np.ndarray, settings: BakeSettings):
     """Generator over one chunk (the receiver's `rows`) in either mode; yields rays cast, returns a ChunkResult.
-    Rows against their faces are black without rays, as rows without a surface, in doubt by the sky Cycles leaves
-    them (core.rules)."""
+    Rows against their faces are measured as Cycles shades them, from behind (core.corners): with the normal −N,
+    their sky clipped by their face reversed (the receiver's `clip`), and marked as decided by that rule (core.rules)
+    so the report shows where normals are against their faces. One whose normal is reversed (within EMPTY_LUNE) has
+    no direction in front of both, and is black without a ray, as a row without a surface."""
     normals = receiver.normals[rows]
     against = None if receiver.against is None else receiver.against[rows]
+    clip = None if receiver.clip is None else receiver.clip[rows]
     if against is not None:
-        normals = np.where(against[:, None], 0.0, normals)
+        normals = np.where(against[:, None], -normals, normals)
+        if clip is not None:
+            normals[against & (np.einsum("ij,ij->i", normals, clip) <= EMPTY_LUNE - 1.0)] = 0.0
     if settings.mode == "unshadowed" or caster is None:
         count = len(rows)
         result = ChunkResult(unshadowed_transfer(settings.order, normals), np.zeros(count),
@@ -57,27 +65,25 @@ def bake_chunk(caster, receiver: Receiver, rows: np.ndarray, settings: BakeSetti
         inward = np.zeros_like(normals) if receiver.inward is None else receiver.inward[rows]
         labels = None if receiver.ray_groups is None else receiver.ray_groups[rows]
         steps = None if receiver.surface_step is None else receiver.surface_step[rows]
-        clip = None if receiver.clip is None else receiver.clip[rows]
         result = yield from shadowed_chunk(caster, receiver.positions[rows], normals, inward, keys, settings, labels,
-                                           steps, clip)
+                                           steps, clip, against)
     if against is not None:
         result.rules[against] = rules.AGAINST
-        # Cycles shades such a corner from behind, gathering −N's directions in front of −Ng
-        faces = None if receiver.against_face is None else -receiver.against_face[rows][against]
-        result.rule_error[against] = rules.doubt(settings.order, -receiver.normals[rows][against], faces)
     # The rules' doubt is no noise more rays take away: it stays in the chunk's error after every round.
     result.curve[:, 2] += np.square(result.rule_error).sum()
     return result
 
 
 def shadowed_chunk(caster: RayCaster, positions, normals, inward, keys, settings: BakeSettings, labels=None,
-                   surface_steps=None, clip=None):
+                   surface_steps=None, clip=None, against=None):
     """Generator: bakes one chunk, yielding the rays cast after each round; returns a ChunkResult. Rows with
     the same `labels` entry share their rays (None: each row casts its own); contact is judged a step along
     `surface_steps` (None: `inward`). A row with a nonzero `clip` normal (c, 3; None: none) counts the directions
     below that plane as blocked, as Cycles' corner on that face does (core.corners), and casts its own rays from
-    above that plane, a step into its face. The result's curve has a row after each round (core.error_curve), its
-    seconds those this generator spent working, not those it waited between yields."""
+    above that plane, a step into its face. Contact never judges the rows `against` their faces ((c,) bool; None:
+    none): shaded from behind, the faces at their vertex would seem to face them, their own first, and their clip
+    already starts their rays behind their face. The result's curve has a row after each round
+    (core.error_curve), its seconds those this generator spent working, not those it waited between yields."""
     resumed, busy = time.perf_counter(), 0.0
     order, replicates = settings.order, settings.replicates
     positions = positions - caster.center
@@ -88,6 +94,9 @@ def shadowed_chunk(caster: RayCaster, positions, normals, inward, keys, settings
     # vertex does not make it black.
     steps = inward if surface_steps is None else surface_steps
     touched, lying, ring = contact.touched_surfaces(caster, positions, normals, steps)
+    if against is not None:
+        touched[against] = 0.0
+        lying &= ~against
     facing = np.einsum("ij,ij->i", touched, normals) < 0
     in_contact = has_surface & lying
     clipped = np.zeros(count, dtype=bool) if clip is None else np.abs(clip).sum(-1) > 0

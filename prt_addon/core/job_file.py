@@ -11,7 +11,7 @@ import numpy as np
 from . import bake, estimator, interreflect, ray_caster, scheduling
 
 # bake.Receiver's optional arrays and bake.ChunkResult's but its records, each in order
-OPTIONAL_RECEIVER_ARRAYS = ("inward", "ray_groups", "surface_step", "against", "clip", "against_face")
+OPTIONAL_RECEIVER_ARRAYS = ("inward", "ray_groups", "surface_step", "against", "clip")
 RESULT_ARRAYS = ("transfer", "std_error", "rays", "skipped", "rules", "rule_error", "curve")
 
 

@@ -28,8 +28,9 @@ from .errors import InputError
 # normal, 5 gives chunks of shared ray groups twice the groups (scheduling.SHARED_CHUNK_FACTOR), 6 has each shard's
 # seconds baking and workers (rays_s, workers: a merged bake's rays per second), 7 the ray engine (in the settings,
 # and as the report names it), 8 the rule that decided each point (core.rules), 9 each chunk's error curve
-# (core.error_curve), 10 each rule's doubt (rule_error).
-PART_FORMAT = "prt-part-10"
+# (core.error_curve), 10 each rule's doubt (rule_error), 11 the points against their faces measured, one per face
+# plane (core.corners.clip_planes).
+PART_FORMAT = "prt-part-11"
 PROBES = "probe_"  # the prefix of the probes' arrays
 
 

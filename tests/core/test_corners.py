@@ -2,7 +2,8 @@
 
 import numpy as np
 
-from prt_addon.core.corners import against_faces, first_triangle_normals, on_fins, shading_points, unsplit_points
+from prt_addon.core.corners import (against_faces, clip_planes, first_triangle_normals, on_fins, shading_points,
+                                    unsplit_points)
 
 # A unit cube, flat-shaded: 8 vertices, 6 quads, 24 corners; each vertex touches 3 faces with 3 normals.
 CUBE_FACES = {(0, 0, -1): (0, 2, 3, 1), (0, 0, 1): (4, 5, 7, 6), (0, -1, 0): (0, 1, 5, 4),
@@ -102,14 +103,21 @@ def test_corners_at_a_vertex_of_an_edge_of_three_faces_are_points_of_their_own_f
     np.testing.assert_array_equal(points.point_vertices[points.corner_points], corner_vertices)
 
 
-def test_a_point_against_its_faces_keeps_the_face_of_its_least_reversed_corner():
-    """Vertex 0's three corners share a normal (up) and are all against their faces: 170°, 120° and 180° from their
-    face normals; the point keeps the 120° corner's unit face normal, whose sky in Cycles is the widest. Vertex 1's
-    corner is not against its face: no face kept."""
+def test_corners_against_their_faces_are_points_of_their_own_face_clipped_by_it_reversed():
+    """Vertex 0's three corners share a normal (up) and are all against their faces, 170°, 120° and 180° from their
+    face normals: Cycles shades each from behind, clipped by its own face reversed, so each is a point of its own
+    with its unit −Ng as its clip. Vertex 1's corner, 10° from its face, on a fin, is clipped by its face as it is."""
     corner_vertices = np.array([0, 0, 0, 1])
     normals = np.tile([0.0, 0.0, 1.0], (4, 1))
     angles = np.radians([170.0, 120.0, 180.0, 10.0])
-    faces = 2.0 * np.stack([np.sin(angles), np.zeros(4), np.cos(angles)], axis=1)  # not unit, as first_triangle_normals
-    points = shading_points(corner_vertices, normals, 2, faces[:, 2] < 0, face_normals=faces)
-    np.testing.assert_array_equal(points.against, [True, False])
-    np.testing.assert_allclose(points.against_face, [[np.sin(angles[1]), 0.0, np.cos(angles[1])], [0.0, 0.0, 0.0]])
+    unit = np.stack([np.sin(angles), np.zeros(4), np.cos(angles)], axis=1)
+    faces = 2.0 * unit  # not unit, as first_triangle_normals gives them
+    against = against_faces(normals, faces)
+    clip = clip_planes(faces, against, np.array([False, False, False, True]))
+    np.testing.assert_allclose(clip, np.concatenate([-unit[:3], unit[3:]]), atol=1e-15)
+    points = shading_points(corner_vertices, normals, 2, against, clip)
+    np.testing.assert_array_equal(points.corner_points, [0, 2, 3, 1])
+    np.testing.assert_array_equal(points.against, [True, False, True, True])
+    np.testing.assert_allclose(points.clip[points.corner_points], clip)
+    assert clip_planes(faces, np.zeros(4, dtype=bool), np.zeros(4, dtype=bool)) is None
+
