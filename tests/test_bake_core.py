@@ -146,6 +146,26 @@ def test_a_row_clipped_by_its_face_plane_gathers_only_above_it():
     assert result.rays.min() > 0 and not result.skipped.any()
 
 
+def test_a_clipped_row_under_a_shadow_in_its_lune_is_unbiased_and_honest():
+    """A +Z normal clipped by a plane 60° from it, under a disc whose shadow (a cap of 22° about +Z) lies wholly in
+    front of that plane: its transfer is the lune's closed form (polygons.lune_transfer, the rays' control variate)
+    less what the disc blocks, the unshadowed transfer less the disc's Legendre quadrature. Over 256 independent
+    vertices the mean is on that truth and the estimated errors are honest."""
+    radius, height, order, tilt = 0.6, 1.5, 3, np.radians(60.0)
+    receiver = receiver_copies(256)
+    receiver.clip = np.tile([np.sin(tilt), 0.0, np.cos(tilt)], (256, 1))
+    (result,), _ = run([receiver], disc(radius, height), order=order, samples=64)
+    up = np.array([[0.0, 0.0, 1.0]])
+    blocked = lobes.unshadowed_transfer(order, up)[0]
+    blocked[ZONAL[:order]] -= capped_transfer_zonal(order, np.arctan(radius / height))
+    truth = polygons.lune_transfer(order, up, receiver.clip[:1])[0] - blocked
+    mean, spread = result.transfer.mean(0), result.transfer.std(0) / np.sqrt(256)
+    assert np.all(np.abs(mean - truth) <= 4 * spread + 1e-4), (mean, truth, spread)
+    ratio = np.linalg.norm(result.transfer - truth, axis=1) / result.std_error
+    assert 0.7 <= np.sqrt(np.mean(ratio ** 2)) <= 1.4
+    assert np.abs(blocked).max() > 0.05  # teeth: the shadow is far larger than the tolerance
+
+
 def test_estimated_error_is_honest():
     """Actual error ÷ estimated standard error over 400 independent vertices has an RMS near 1."""
     radius, height = 1.0, 1.0

@@ -24,9 +24,6 @@ WEIGHT_BYTES_PER_BATCH = 1 << 20
 # Basis values that _weighted_means evaluates at once: 4M values = 32 MB in float64 (16 MB for a shared group's
 # float32, weight_dtype), whatever the order and rays.
 REPLICATE_VALUES_AT_ONCE = 1 << 22
-# A row against its face sees (1 + N·Ng)/2 of the sky (core.corners): at most this much over −1 it sees a lune of
-# at most half this, float rounding of an exactly reversed normal, which Cycles finds black (0.000 measured).
-EMPTY_LUNE = 1e-9
 
 
 def provably_unoccluded(positions, normals, hull, offset) -> np.ndarray:
@@ -46,15 +43,12 @@ def bake_chunk(caster, receiver: Receiver, rows: np.ndarray, settings: BakeSetti
     """Generator over one chunk (the receiver's `rows`) in either mode; yields rays cast, returns a ChunkResult.
     Rows against their faces are measured as Cycles shades them, from behind (core.corners): with the normal −N,
     their sky clipped by their face reversed (the receiver's `clip`), and marked as decided by that rule (core.rules)
-    so the report shows where normals are against their faces. One whose normal is reversed (within EMPTY_LUNE) has
-    no direction in front of both, and is black without a ray, as a row without a surface."""
+    so the report shows where normals are against their faces."""
     normals = receiver.normals[rows]
     against = None if receiver.against is None else receiver.against[rows]
     clip = None if receiver.clip is None else receiver.clip[rows]
     if against is not None:
         normals = np.where(against[:, None], -normals, normals)
-        if clip is not None:
-            normals[against & (np.einsum("ij,ij->i", normals, clip) <= EMPTY_LUNE - 1.0)] = 0.0
     if settings.mode == "unshadowed" or caster is None:
         count = len(rows)
         result = ChunkResult(unshadowed_transfer(settings.order, normals), np.zeros(count),
@@ -100,6 +94,10 @@ def shadowed_chunk(caster: RayCaster, positions, normals, inward, keys, settings
     facing = np.einsum("ij,ij->i", touched, normals) < 0
     in_contact = has_surface & lying
     clipped = np.zeros(count, dtype=bool) if clip is None else np.abs(clip).sum(-1) > 0
+    # A clipped row's rays estimate only what blocks its sky in front of its plane, whose transfer is their control
+    # variate in closed form: exact where nothing else blocks it (a corner against its face on a convex part).
+    if clipped.any():
+        unshadowed[clipped] = polygons.lune_transfer(order, normals[clipped], clip[clipped])
     # The hull test assumes rays start an offset along the normal; a point touching a surface starts them elsewhere
     # (below), and a surface it faces squarely at its own tangent plane (a sphere's pole on a floor) passes the test.
     open_sky = provably_unoccluded(positions, normals, caster.hull, caster.offset) & ~facing & ~clipped
@@ -130,6 +128,8 @@ def shadowed_chunk(caster: RayCaster, positions, normals, inward, keys, settings
     lattices = [(ray_groups.frames(normals[members[:, 0]]), None) if members.shape[1] == 1 else next(caps)
                 for members in sets]
     cones, flat_blocked = _flat_shadows(caster, origins, normals, order)
+    if cones is not None:  # their closed forms cover a whole lobe, not a clipped row's lune: its rays count them
+        cones[clipped], flat_blocked[clipped] = 0.0, 0.0
     shared_rings = rings.shared_ring_planes(caster, sets, origins, ring, ring_sizes) if predicting else None
     rounds = []  # (rows, rays per row, transfer mean, transfer variance), combined below
     curve = []  # core.error_curve's row after each round
@@ -281,10 +281,17 @@ def _blocked_round(caster, origins, normals, lattice, unshadowed, flat, ring_pla
     if flat is not None:
         cones, flat_blocked = flat  # a group's cones: its rows share their origin
         blocked = blocked - polygons.hits(cast, cones).reshape(groups, 1, replicates, per_replicate)
-    if size == 1:  # every weight is 1
+    if size == 1:  # every weight is 1, but 0 below a clip plane: the lune's control variate stands for those rays
         beta = 1.0 - blocked.mean(axis=(2, 3))[..., None, None]
         weights[...] = 1.0 / per_replicate
-        np.multiply(blocked, 1.0 / per_replicate, out=blocked_weights)
+        if clip is None:
+            np.multiply(blocked, 1.0 / per_replicate, out=blocked_weights)
+        else:
+            rows = np.abs(clip).sum(-1) > 0
+            weights[rows] *= ~below[rows].reshape(-1, 1, replicates, per_replicate)
+            np.multiply(blocked, weights, out=blocked_weights)
+            counted = np.maximum(weights[rows].sum(axis=(2, 3)), 1.0 / per_replicate)  # none: β 1, the closed form
+            beta[rows] = 1.0 - blocked_weights[rows].sum(axis=(2, 3))[..., None, None] / counted[..., None, None]
         weights = None
     else:
         np.multiply(weights, blocked.astype(dtype), out=blocked_weights)
