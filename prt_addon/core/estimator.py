@@ -281,17 +281,17 @@ def _blocked_round(caster, origins, normals, lattice, unshadowed, flat, ring_pla
     if flat is not None:
         cones, flat_blocked = flat  # a group's cones: its rows share their origin
         blocked = blocked - polygons.hits(cast, cones).reshape(groups, 1, replicates, per_replicate)
-    if size == 1:  # every weight is 1, but 0 below a clip plane: the lune's control variate stands for those rays
+    if size == 1:  # every weight is 1
         beta = 1.0 - blocked.mean(axis=(2, 3))[..., None, None]
         weights[...] = 1.0 / per_replicate
         if clip is None:
             np.multiply(blocked, 1.0 / per_replicate, out=blocked_weights)
-        else:
+        else:  # but 0 below a clip plane, where the lune's transfer (`unshadowed`) stands for the rays with β = 1: a
+            # β from the rays in a thin lune, none in most replicates, would pull its estimate towards the open lune
             rows = np.abs(clip).sum(-1) > 0
             weights[rows] *= ~below[rows].reshape(-1, 1, replicates, per_replicate)
             np.multiply(blocked, weights, out=blocked_weights)
-            counted = np.maximum(weights[rows].sum(axis=(2, 3)), 1.0 / per_replicate)  # none: β 1, the closed form
-            beta[rows] = 1.0 - blocked_weights[rows].sum(axis=(2, 3))[..., None, None] / counted[..., None, None]
+            beta[rows] = 1.0
         weights = None
     else:
         np.multiply(weights, blocked.astype(dtype), out=blocked_weights)
