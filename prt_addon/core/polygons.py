@@ -161,10 +161,11 @@ def lune_transfer(order, normals, planes):
     out = lobes.cosine_transfer(order, normals) * (~lune & (dots > 0.0))[:, None]
     if lune.any():
         n, m, e = normals[lune], planes[lune], tips[lune] / sines[lune, None]
-        across_m = n - dots[lune, None] * m  # the middle of the edge on m's plane, on n's side
-        across_n = m - dots[lune, None] * n  # the middle of the edge on n's horizon, on m's side
-        across_m /= np.linalg.norm(across_m, axis=1, keepdims=True)
-        across_n /= np.linalg.norm(across_n, axis=1, keepdims=True)
+        # The middle of the edge on m's plane, on n's side (m × (n × m) = n − (n·m)m), and that of the edge on n's
+        # horizon, on m's side: as cross products with e, which lose nothing where n and m nearly agree (a normal and
+        # its own face's plane, each unit only to float32's rounding, whose difference n − (n·m)m is mostly that).
+        across_m = _cross(m, e)
+        across_n = _cross(e, n)
         out[lune] = _cosine_sh_integrals(order, np.stack([across_m, -e, across_n, e], axis=1), n) / np.pi
     return out
 
