@@ -157,7 +157,10 @@ def lune_transfer(order, normals, planes):
     tips = _cross(normals, planes)
     sines = np.linalg.norm(tips, axis=1)
     dots = np.einsum("ij,ij->i", normals, planes)
-    lune = sines > 1e-12  # else the plane is the tangent plane: the whole hemisphere in front of it, or none
+    # Else the plane is the tangent plane: the whole hemisphere in front of it, or none. A lune of dihedral angle δ
+    # differs from those by O(δ²) in every band, so below 1e-6 rad (the float rounding of a normal taken twice from a
+    # mesh, or of one exactly reversed) they are exact within 1e-10: black where Cycles reads 0.000 (R2).
+    lune = sines > 1e-6
     out = lobes.cosine_transfer(order, normals) * (~lune & (dots > 0.0))[:, None]
     if lune.any():
         n, m, e = normals[lune], planes[lune], tips[lune] / sines[lune, None]
