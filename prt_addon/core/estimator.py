@@ -72,9 +72,9 @@ def shadowed_chunk(caster: RayCaster, positions, normals, inward, keys, settings
                    surface_steps=None, clip=None, against=None):
     """Generator: bakes one chunk, yielding the rays cast after each round; returns a ChunkResult. Rows with
     the same `labels` entry share their rays (None: each row casts its own); contact is judged a step along
-    `surface_steps` (None: `inward`). A row with a nonzero `clip` normal (c, 3; None: none) counts the directions
-    below that plane as blocked, as Cycles' corner on that face does (core.corners), and casts its own rays from
-    above that plane, a step into its face. Contact never judges the rows `against` their faces ((c,) bool; None:
+    `surface_steps` (None: `inward`). A row with a nonzero `clip` normal (c, 3; None: none) gathers only the
+    directions above that plane, as Cycles' corner on that face does (core.corners): the lune's closed form less what
+    its own rays, cast from above that plane a step into its face, find blocked in it. Contact never judges the rows `against` their faces ((c,) bool; None:
     none): shaded from behind, the faces at their vertex would seem to face them, their own first, and their clip
     already starts their rays behind their face. The result's curve has a row after each round
     (core.error_curve), its seconds those this generator spent working, not those it waited between yields."""
