@@ -25,6 +25,8 @@ def mesh_shading_points(mesh, positions=None, corner_triangles=None) -> corners.
     normals = mesh_vertex_normals(mesh) if point_domain else mesh_corner_normals(mesh)  # vertex's normal
     corner_normals = normals[corner_vertices] if point_domain else normals
     face_normals = corners.first_triangle_normals(positions[corner_vertices], corner_triangles)
+    if mesh.normals_domain == "FACE":
+        corner_normals = corners.flat_shading_normals(corner_normals, face_normals)
     against = corners.against_faces(corner_normals, face_normals)
     fins = corners.on_fins(corner_vertices, mesh_corner_edges(mesh), mesh_edge_vertices(mesh))
     clip = corners.clip_planes(face_normals, against, fins)

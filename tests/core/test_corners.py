@@ -2,7 +2,8 @@
 
 import numpy as np
 
-from prt_addon.core.corners import (against_faces, clip_planes, first_triangle_normals, on_fins, shading_points,
+from prt_addon.core.corners import (against_faces, clip_planes, first_triangle_normals, flat_shading_normals, on_fins,
+                                    shading_points,
                                     unsplit_points)
 
 # A unit cube, flat-shaded: 8 vertices, 6 quads, 24 corners; each vertex touches 3 faces with 3 normals.
@@ -121,3 +122,20 @@ def test_corners_against_their_faces_are_points_of_their_own_face_clipped_by_it_
     np.testing.assert_allclose(points.clip[points.corner_points], clip)
     assert clip_planes(faces, np.zeros(4, dtype=bool), np.zeros(4, dtype=bool)) is None
 
+
+
+def test_a_flat_faces_corners_take_their_own_triangles_normal_where_the_face_is_not_planar():
+    """A quad folded along its diagonal 0-2 (vertex 3 lifted): Blender gives its four corners the mean plane's
+    normal; Cycles shades each triangle with its own. Corners 0, 1, 2 are held first by the triangle (0, 1, 2), whose
+    normal is +Z; corner 3 only by (0, 2, 3), tilted towards −Y. The same quad flat keeps Blender's normals, bits
+    and all."""
+    folded = np.array([[0.0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0.5]])
+    triangles = np.array([[0, 1, 2], [0, 2, 3]])
+    mean = np.tile(np.cross(folded[2] - folded[0], folded[3] - folded[1]), (4, 1))
+    mean /= np.linalg.norm(mean, axis=1, keepdims=True)
+    found = flat_shading_normals(mean, first_triangle_normals(folded, triangles))
+    tilted = np.cross(folded[2] - folded[0], folded[3] - folded[0])
+    np.testing.assert_allclose(found, [[0, 0, 1]] * 3 + [tilted / np.linalg.norm(tilted)], atol=1e-15)
+    flat = folded * [1, 1, 0]
+    plane = np.tile([0.0, 0.0, 1.0 - 1e-9], (4, 1))  # Blender's float normal, a hair off the triangles' exact one
+    assert (flat_shading_normals(plane, first_triangle_normals(flat, triangles)) == plane).all()
