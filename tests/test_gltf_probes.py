@@ -40,7 +40,7 @@ TO_GLTF[:3, :3] = gltf_pack.Z_UP_TO_Y_UP
 @pytest.fixture(scope="module")
 def probe_file(addon, tmp_path_factory):
     """The floor (8 × 8, a grid, so its shadow shows), the wall (x −0.2..0.2, y −2..2, z 0..3), a probe volume of 7 × 2 × 3 probes over x −3.5..3.5 (those at x = 0 in the wall),
-    a dynamic Suzanne (scale 0.4) turned a little, a camera, a sun from +X and a sky; baked shadowed at order 4."""
+    a dynamic Suzanne (scale 0.4, lit at its centre) turned a little, a camera, a sun from +X and a sky; baked shadowed at order 4."""
     bpy.ops.wm.read_homefile(use_empty=True)
     bpy.ops.mesh.primitive_grid_add(x_subdivisions=32, y_subdivisions=32, size=8.0)
     bpy.ops.mesh.primitive_cube_add(size=1.0, location=(0.0, 0.0, 1.5), scale=(0.4, 4.0, 3.0))
@@ -51,6 +51,7 @@ def probe_file(addon, tmp_path_factory):
     bpy.ops.mesh.primitive_monkey_add(size=1.0, location=START, rotation=(0.0, 0.0, -0.6), scale=(0.4,) * 3)
     bpy.ops.object.shade_smooth()
     bpy.context.object.prt_dynamic = True
+    bpy.context.object.prt_probe_light = "centre"  # as the viewer and COLOR_0 light it
     bpy.ops.object.camera_add(location=(0.0, -7.5, 3.0), rotation=(math.radians(72), 0.0, 0.0))
     bpy.context.scene.camera = bpy.context.object
     bpy.context.scene.render.resolution_x, bpy.context.scene.render.resolution_y = SIZE
@@ -150,7 +151,7 @@ def test_the_file_alone_gives_the_dynamic_objects_colours_as_blenders_display(pr
     assert np.all(np.abs(local) <= 1.0)
     indices, weights = probe_grid.trilinear_weights(local, volume["resolution"], np.array(volume["valid"]) != 0)
     matrices = view_floats(document, binary, volume["bufferView"]).reshape(42, 1, 16, 16).astype(np.float64)
-    arriving = probe_grid.incoming_light(matrices, indices, weights, light)
+    arriving = probe_grid.blend(probe_grid.probe_lights(matrices, light), indices, weights)
     turn = world[:3, :3] / np.linalg.norm(world[:3, :3], axis=0)
     shown = shading.shade(transfer, rotation.rotate(arriving, turn.T))
     # COLOR_0 is linear, clipped to 0-1 and 16-bit
@@ -211,8 +212,8 @@ def test_the_viewers_probe_light_is_the_add_ons():
         indices, expected = probe_grid.trilinear_weights(local, resolution, valid)
         assert weights["indices"] == indices.tolist()
         np.testing.assert_allclose(weights["weights"], expected, atol=1e-12)
-        np.testing.assert_allclose(arriving, probe_grid.incoming_light(matrices.astype(np.float64), indices,
-                                                                       expected, light), atol=1e-9)
+        lights = probe_grid.probe_lights(matrices.astype(np.float64), light)
+        np.testing.assert_allclose(arriving, probe_grid.blend(lights, indices, expected), atol=1e-9)
     np.testing.assert_allclose(got["in_frame"], rotation.rotate(light, turn.T), atol=1e-12)
 
 

@@ -17,6 +17,8 @@ import numpy as np
 import pytest
 
 from conftest import add_light, labels_drawn
+from node_setups import principled_material
+from test_relight import read_png, srgb_to_linear
 from quadrature import reference_sh
 from prt_addon.blender import probe_volumes
 from prt_addon.blender.checks import scene_checks
@@ -24,7 +26,7 @@ from prt_addon.blender.plan import plan_bake
 from prt_addon.blender.request import read_request
 from prt_addon.blender.compat import new_node_material
 from prt_addon.blender.scene_bake import SceneBake
-from prt_addon.core import bake
+from prt_addon.core import bake, probe_grid
 from prt_addon.core.checks import ERROR
 from prt_addon.core.executors import InProcess
 from prt_addon.core.shading import direction_from_angles, sun_coefficients
@@ -45,7 +47,8 @@ def update():
 @pytest.fixture
 def wall_scene(empty_scene):
     """The floor, the wall, a probe volume over them (a cube of display size 2 scaled to 8 × 2 × 2) with probes at
-    x = −3.2, −1.6, 0 (in the wall), 1.6, 3.2 and z = 0.7, 1.7, a dynamic sphere and the sun."""
+    x = −3.2, −1.6, 0 (in the wall), 1.6, 3.2 and z = 0.7, 1.7, a dynamic sphere lit at its centre (one blend of
+    probes for all of it, which the closed form at one point checks; per vertex where a test says so) and the sun."""
     bpy.ops.mesh.primitive_plane_add(size=2 * FLOOR)
     low, high = np.array(WALL[0]), np.array(WALL[1])
     bpy.ops.mesh.primitive_cube_add(size=1.0, location=tuple((low + high) / 2), scale=tuple(high - low))
@@ -57,6 +60,7 @@ def wall_scene(empty_scene):
     sphere = bpy.context.object
     bpy.ops.object.shade_smooth()
     sphere.prt_dynamic = True
+    sphere.prt_probe_light = "centre"
     bpy.ops.object.select_all(action="DESELECT")
     empty_scene.prt_display.window = "none"
     theta, phi, strength = SUN
@@ -153,6 +157,105 @@ def test_a_dynamic_sphere_in_the_walls_shadow_gets_the_closed_form_light_through
     assert means["shadow"][1] < 0.6 * means["open"][1]
 
 
+def test_per_vertex_each_vertex_gets_its_own_blend_of_the_closed_form_probes(wall_scene):
+    """Per vertex, a vertex at p shows the convex lobe under Σ_k w_k(p) T_k L, T_k the closed form at the probes
+    around p and w their trilinear weights over the valid ones (checked against hand values in
+    tests/core/test_probe_volume.py): across the sphere in the shadow, vertices towards the open side blend in the
+    open probes' light, while those towards the wall take the probe beside it alone. Outside every volume, every
+    vertex gets the distant light."""
+    sphere, volume = wall_scene
+    sphere.prt_probe_light = "vertex"
+    SceneBake(bpy.context, bake.BakeSettings(order=ORDER, mode="shadowed", samples=SAMPLES)).run(log=lambda line: None)
+    stored = probe_volumes.read(volume)
+    sigma = volume[probe_volumes.METADATA_KEY]["est_max_error"]
+    placement = np.linalg.inv(stored.to_volume)
+    truth = np.array([closed_form_transfer(origin) for origin in probe_grid.probe_positions(placement, (5, 1, 2))])
+    light = sun_light()
+    reach = np.linalg.norm(light) * np.linalg.norm(np.repeat(np.array(A_HAT) / math.pi, 2 * np.arange(ORDER) + 1)
+                                                   * reference_sh(ORDER, np.array([[0.0, 0.0, 1.0]]))[0])
+    apart = 0.0
+    for location, turn in ((SHADOW, (0.4, 1.1, -2.0)), (OPEN, (0.0, 0.0, 0.0)), ((-2.4, 0.0, 1.2), (1.0, 0.0, 0.5))):
+        shown = shown_at(sphere, location, turn)
+        positions = np.empty(3 * len(sphere.data.vertices))
+        sphere.data.vertices.foreach_get("co", positions)
+        world = positions.reshape(-1, 3) @ np.array(sphere.matrix_world.to_3x3()).T + np.array(location)
+        local = world @ stored.to_volume[:3, :3].T + stored.to_volume[:3, 3]
+        indices, weights = probe_grid.trilinear_weights(local, (5, 1, 2), stored.valid)
+        arriving = np.einsum("vk,vkij,j->vi", weights, truth[indices], light)
+        normals = world_normals(sphere)
+        expected = np.array([convex_shading(normal[None], row)[0] for normal, row in zip(normals, arriving)])
+        centre = convex_shading(normals, closed_form_transfer(location) @ light)
+        error = np.abs(shown - expected).max()
+        print(f"{location}: per vertex largest difference {error:.4f} (bound {3 * sigma * reach + 2e-3:.4f}); "
+              f"from the centre's light instead {np.abs(centre - expected).max():.4f}")
+        assert error <= 3 * sigma * reach + 2e-3
+        apart = max(apart, np.abs(centre - expected).max())
+    assert apart > 3 * sigma * reach + 2e-3  # per vertex is not the centre's light
+    sphere.prt_probe_light = "centre"  # shown again at once, the centre's light
+    update()
+    indices, weights = probe_grid.trilinear_weights(stored.to_volume[:3, :3] @ location + stored.to_volume[:3, 3],
+                                                    (5, 1, 2), stored.valid)
+    at_centre = np.einsum("k,kij,j->i", weights, stored.matrices[indices, 0], light)  # the stored probes, blended
+    np.testing.assert_allclose(colours(sphere.data), convex_shading(world_normals(sphere), at_centre), atol=1e-5)
+    sphere.location = (-10.0, 0.0, 0.7)
+    update()
+    np.testing.assert_allclose(colours(sphere.data), convex_shading(world_normals(sphere), sun_light()),
+                               rtol=0, atol=2e-6)
+
+
+def test_keyframed_motion_renders_each_frames_probe_light_with_eevee(wall_scene, prt, tmp_path):
+    """Two frames of an animation rendered with EEVEE (the frame handler relights the moving sphere for each, per
+    vertex): in the wall's shadow at frame 1, in the open and turned at frame 2. A camera following it straight down
+    sees the top of the sphere, whose colour (× a white albedo) is the closed form's: the light arriving at the top
+    vertex, Σ_k w_k T_k L with T_k the closed-form probes, on the convex lobe around +Z."""
+    sphere, volume = wall_scene
+    sphere.prt_probe_light = "vertex"
+    sphere.data.materials.append(principled_material("White", base_colour=(1.0, 1.0, 1.0)))
+    SceneBake(bpy.context, bake.BakeSettings(order=ORDER, mode="shadowed", samples=SAMPLES)).run(log=lambda line: None)
+    stored = probe_volumes.read(volume)
+    sigma = volume[probe_volumes.METADATA_KEY]["est_max_error"]
+    scene = bpy.context.scene
+    scene.prt_display.show_prt = True
+    camera = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
+    camera.data.type, camera.data.ortho_scale = "ORTHO", 0.05
+    scene.collection.objects.link(camera)
+    scene.camera = camera
+    frames = {1: (SHADOW, 0.0), 2: (OPEN, 1.0)}
+    for frame, (location, turn) in frames.items():
+        sphere.location, sphere.rotation_euler = location, (0.0, 0.0, turn)  # about Z: its pole stays on top
+        sphere.keyframe_insert("location", frame=frame)
+        sphere.keyframe_insert("rotation_euler", frame=frame)
+        camera.location = (location[0], location[1], 3.0)
+        camera.keyframe_insert("location", frame=frame)
+    scene.frame_start, scene.frame_end = 1, 2
+    scene.render.engine = prt.render.engine_id("EEVEE")
+    scene.eevee.taa_render_samples = 1
+    scene.view_settings.view_transform = "Standard"
+    scene.render.resolution_x = scene.render.resolution_y = 16
+    scene.render.resolution_percentage = 100
+    scene.render.image_settings.file_format = "PNG"
+    scene.render.filepath = str(tmp_path / "frame_")
+    bpy.ops.render.render(animation=True)
+    lobe = np.repeat(np.array(A_HAT) / math.pi, 2 * np.arange(ORDER) + 1) * reference_sh(ORDER, [[0.0, 0.0, 1.0]])[0]
+    placement = np.linalg.inv(stored.to_volume)
+    light = sun_light()
+    bound = 3 * sigma * np.linalg.norm(light) * np.linalg.norm(lobe) + 2e-3 + 0.01  # + 8-bit sRGB and EEVEE's filter
+    shown, expected = {}, {}
+    for frame, (location, _) in frames.items():
+        top = np.array(location) + (0.0, 0.0, 0.3)
+        indices, weights = probe_grid.trilinear_weights(top @ stored.to_volume[:3, :3].T + stored.to_volume[:3, 3],
+                                                        (5, 1, 2), stored.valid)
+        probes = probe_grid.probe_positions(placement, (5, 1, 2))[indices]
+        arriving = sum(weight * closed_form_transfer(origin) @ light for weight, origin in zip(weights, probes))
+        expected[frame] = max(lobe @ arriving, 0.0)
+        pixels = srgb_to_linear(read_png(str(tmp_path / f"frame_{frame:04d}.png"))[7:9, 7:9, :3])
+        shown[frame] = pixels.mean()
+        print(f"frame {frame}: top of the sphere rendered {shown[frame]:.4f}, closed form {expected[frame]:.4f} "
+              f"(bound {bound:.4f})")
+        assert np.abs(pixels - expected[frame]).max() <= bound
+    assert expected[2] - expected[1] > 2 * bound  # each frame shows its own light, not the other's
+
+
 def test_beside_the_wall_the_sphere_is_lit_by_its_own_side_only(wall_scene, tmp_path):
     """Its cell's probes in the wall are left out: it takes the probe at x = −1.6 alone, not the open side's. The
     probes stay where they were baked when the volume moves, and are saved with the file."""
@@ -246,3 +349,16 @@ def test_an_unshadowed_or_farm_bake_leaves_the_probes_as_they_were(empty_scene):
     volume.scale = (1.0, 0.0, 1.0)
     flat = read_request(bpy.context, bake.BakeSettings(order=ORDER, samples=16))
     assert flat.probe_volumes == [] and any("flat on an axis" in problem for problem in flat.problems)
+
+
+def test_a_volume_rebaked_at_another_resolution_holds_the_new_probes(empty_scene):
+    """Its arrays are replaced by arrays of the new size (assigned over the old ones, Blender corrupted its heap)."""
+    bpy.ops.mesh.primitive_plane_add(size=2 * FLOOR)
+    bpy.ops.prt.add_probe_volume()
+    volume = bpy.context.object
+    bpy.ops.object.select_all(action="DESELECT")
+    for resolution in ((1, 1, 2), (3, 2, 2), (2, 1, 1)):
+        volume.prt_probe_resolution = resolution
+        SceneBake(bpy.context, bake.BakeSettings(order=ORDER, samples=16)).run(log=lambda line: None)
+        stored = probe_volumes.read(volume)
+        assert stored.resolution == resolution and stored.matrices.shape[0] == stored.valid.size == np.prod(resolution)

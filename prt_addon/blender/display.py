@@ -37,6 +37,18 @@ def write_display_colours(mesh, transfer: np.ndarray, light: np.ndarray, corner_
     alpha_free = np.vstack([light, np.zeros((1, light.shape[1]))])  # a zero row: shade() fills four columns
     rgba = shading.shade(transfer, alpha_free)
     rgba[:, 3] = 1.0
+    _write_points(mesh, rgba, corner_points)
+
+
+def write_radiance(mesh, radiance: np.ndarray, corner_points=None):
+    """Radiance (P, 3) already formed per shading point (a dynamic object lit per vertex through the probes) into
+    the colour attribute, as write_display_colours writes its products."""
+    rgba = np.ones((len(radiance), 4), dtype=np.float32)
+    rgba[:, :3] = radiance
+    _write_points(mesh, rgba, corner_points)
+
+
+def _write_points(mesh, rgba, corner_points):
     np.maximum(rgba, 0.0, out=rgba)
     domain = "POINT" if corner_points is None else "CORNER"
     if corner_points is not None:

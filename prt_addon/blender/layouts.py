@@ -5,9 +5,9 @@ Baking, each receiver's layout (chosen by its plan) gives the points the bake so
 to refine where it has one (`grid`), whether the probes between vertices measure it (`between_vertices`) and whether
 its Subsurface Weight applies (`takes_subsurface`), the rows it stores (`stored_rows`), and writes the result
 (`write`), replacing any earlier bake of any layout (storage.remove_transfer). Reading back, `stored(mesh)` is the
-layout a mesh's bake has, and its `read`, `shade`, `display_source` and `describe` are what the relighting, the
-display and the Stored Bake panel use; its `gltf` and `npz`, with `npz_side_files`, what the exports (blender.gltf,
-`prt export`) write. Nothing outside this module asks which layout a bake has.
+layout a mesh's bake has, and its `read`, `shade`, `points`, `shade_points`, `display_source` and `describe` are
+what the relighting, the display and the Stored Bake panel use; its `gltf` and `npz`, with `npz_side_files`, what
+the exports (blender.gltf, `prt export`) write. Nothing outside this module asks which layout a bake has.
 """
 
 from dataclasses import dataclass
@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..core import bake, gltf_pack, texel_refine, texels
-from . import display, npz_export, storage, texel_maps
+from . import display, mesh_arrays, npz_export, storage, texel_maps
 
 
 @dataclass
@@ -79,6 +79,22 @@ class PerVertex:
     def shade(mesh, shading: Shading, light: np.ndarray):
         """The display colours under `light` (3, n²)."""
         display.write_display_colours(mesh, shading.transfer, light, shading.corner_points)
+
+    @staticmethod
+    def shade_points(mesh, shading: Shading, radiance: np.ndarray):
+        """The display colours from radiance (P, 3) formed per shading point (a dynamic object lit per vertex)."""
+        display.write_radiance(mesh, radiance, shading.corner_points)
+
+    @staticmethod
+    def points(mesh, shading: Shading) -> np.ndarray | None:
+        """(P, 3) each shading point's position in the object's frame: its vertex's (a split vertex's corner
+        points share it); None where the rows are not points (texels)."""
+        positions = mesh_arrays.mesh_positions(mesh)
+        if shading.corner_points is None:
+            return positions
+        vertex_of = np.empty(len(shading.transfer), dtype=np.int64)
+        vertex_of[shading.corner_points] = mesh_arrays.mesh_corner_vertices(mesh)
+        return positions[vertex_of]
 
     @staticmethod
     def display_source(mesh):
@@ -168,6 +184,10 @@ class PerTexel:
     @staticmethod
     def shade(mesh, shading: Shading, light: np.ndarray):
         texel_maps.write_shaded(mesh, shading.transfer, light)
+
+    @staticmethod
+    def points(mesh, shading: Shading):
+        return None
 
     @staticmethod
     def display_source(mesh):

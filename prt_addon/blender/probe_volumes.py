@@ -2,7 +2,7 @@
 that the user scales over the scene, with its probes per axis in `prt_probe_resolution` (blender.schema; the grid is
 core.probe_grid's). A bake of the static scene bakes every visible one (blender.request, blender.execute) and stores
 each probe's transfer matrix on its Empty (blender.store); the display lights each dynamic object from the volume
-around its centre (blender.relighting).
+around each of its vertices, or around its centre (blender.relighting).
 
 Stored on the Empty, as custom properties saved in the .blend with it:
 - `_prt_probe_transfer`: float32 array, the matrices (P, C, n², n²) in C order, probes numbered as core.probe_grid;
@@ -23,6 +23,7 @@ import bpy
 import numpy as np
 
 from ..core import probe_grid
+from ..core.arrays import bounds, one_thread_product
 from ..core import settings as spec
 from ..core.errors import StaleBake
 from .texel_bake import OBJECT_PREFIX
@@ -55,6 +56,8 @@ class StoredProbes:
     to_volume: np.ndarray
     resolution: tuple
     order: int
+    bake_id: str = ""
+    last_light: tuple | None = None  # (light bytes, its probes' lights): see lights()
 
 
 def is_probe_volume(ob) -> bool:
@@ -86,6 +89,11 @@ def write(volumes: list[VolumeInput], probes, settings) -> list[str]:
         first = rows.stop
         ob = bpy.data.objects[volume.name]
         matrices = probes.matrices[rows]
+        for key in (TRANSFER_KEY, VALID_KEY):
+            # Assigning an array of another size over an existing one corrupts Blender's heap (bpy 5.3: a crash a
+            # few allocations later), so a new resolution's arrays are always new properties.
+            if key in ob:
+                del ob[key]
         ob[TRANSFER_KEY] = np.ascontiguousarray(matrices, dtype=np.float32).ravel()
         ob[VALID_KEY] = (~probes.inside[rows]).astype(np.int32)
         inside = int(probes.inside[rows].sum())
@@ -123,27 +131,47 @@ def read(ob) -> StoredProbes:
     placement = np.array(meta["placement"], dtype=np.float64).reshape(4, 4)
     return StoredProbes(matrices.reshape(count, channels, size, size).astype(np.float64),
                         np.frombuffer(ob[VALID_KEY], dtype=np.int32) != 0, np.linalg.inv(placement),
-                        resolution, order)
+                        resolution, order, meta.get("bake_id", ""))
 
 
-def containing(stored: list[StoredProbes], point) -> tuple[StoredProbes, np.ndarray] | None:
-    """(the smallest of the volumes whose cube holds `point` (3,) in world space, the point in its frame), or None."""
-    best = None
-    for probes in stored:
-        local = probes.to_volume[:3, :3] @ np.asarray(point, dtype=np.float64) + probes.to_volume[:3, 3]
-        if np.all(np.abs(local) <= 1.0):
-            size = 1.0 / abs(np.linalg.det(probes.to_volume[:3, :3]))
-            if best is None or size < best[0]:
-                best = size, probes, local
-    return None if best is None else best[1:]
+def lights(probes: StoredProbes, light) -> np.ndarray:
+    """(P, 3, n²) each probe's incoming light under the distant light (3, n²) (core.probe_grid.probe_lights), kept
+    with the probes for the last light: a light change costs one product per probe, a moving object none."""
+    key = light.tobytes()
+    if probes.last_light is None or probes.last_light[0] != key:
+        probes.last_light = key, probe_grid.probe_lights(probes.matrices, light)
+    return probes.last_light[1]
+
+
+def containing(stored: list[StoredProbes], points, matrix=None) -> tuple[np.ndarray, np.ndarray]:
+    """(which volume holds each of `points` (N, 3), placed in world space by `matrix` (4, 4): the index in `stored` of
+    the smallest whose cube holds it, −1 for none; the points in that volume's frame (N, 3)).
+
+    A moving object inside a single volume (the usual case, and every frame of it) costs one product: the volume
+    is convex, so the object is inside when the corners of its points' bounding box are."""
+    points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    placed = [found.to_volume @ (np.eye(4) if matrix is None else matrix) for found in stored]
+    if len(stored) == 1:
+        linear, offset = placed[0][:3, :3], placed[0][:3, 3]
+        corners = np.array(np.meshgrid(*zip(*bounds(points)), indexing="ij")).reshape(3, -1).T
+        if np.all(np.abs(corners @ linear.T + offset) <= 1.0):
+            return np.zeros(len(points), dtype=np.int64), one_thread_product(points, linear.T) + offset
+    which, local = np.full(len(points), -1), np.zeros_like(points)
+    # Largest first, so that a smaller volume inside it takes its points over.
+    for index in sorted(range(len(stored)), key=lambda k: abs(np.linalg.det(stored[k].to_volume[:3, :3]))):
+        mine = one_thread_product(points, placed[index][:3, :3].T) + placed[index][:3, 3]
+        inside = (np.abs(mine[:, 0]) <= 1.0) & (np.abs(mine[:, 1]) <= 1.0) & (np.abs(mine[:, 2]) <= 1.0)
+        which[inside], local[inside] = index, mine[inside]
+    return which, local
 
 
 def light_at(stored: list[StoredProbes], point, light) -> np.ndarray | None:
-    """(3, n²) the SH light arriving at `point` in world space from the distant light (3, n²) through the volume that
-    holds it (core.probe_grid), or None where no volume of the light's order holds it."""
-    found = containing([probes for probes in stored if probes.order ** 2 == light.shape[-1]], point)
-    if found is None:
+    """(3, n²) the SH light arriving at `point` (3,) in world space from the distant light (3, n²) through the
+    smallest of `stored` of the light's order that holds it (core.probe_grid), or None where none does."""
+    stored = [probes for probes in stored if probes.order ** 2 == light.shape[-1]]
+    which, local = containing(stored, point)
+    if which[0] < 0:
         return None
-    probes, local = found
-    indices, weights = probe_grid.trilinear_weights(local, probes.resolution, probes.valid)
-    return probe_grid.incoming_light(probes.matrices, indices, weights, light)
+    probes = stored[which[0]]
+    indices, weights = probe_grid.trilinear_weights(local[0], probes.resolution, probes.valid)
+    return probe_grid.blend(lights(probes, light), indices, weights)

@@ -14,10 +14,13 @@ import bpy
 import numpy as np
 
 from ..core import lights as core_lights
-from ..core import rotation
+from ..core import probe_grid, rotation, shading
+from ..core import settings as spec
+from ..core.arrays import one_thread_product
 from ..core.errors import StaleBake
 from . import display, heatmaps, layouts, probe_volumes, storage
 from .lights import environment_image, scene_lights, sync_sun_lamps
+from .texel_bake import OBJECT_PREFIX
 
 
 PAUSED_KEY = "_prt_relighting_paused"  # on a scene while a reference renders it: the display leaves it alone
@@ -46,6 +49,7 @@ class Relighter:
         self._transfers = {}
         self._shaded = {}     # mesh name → (bake key, light bytes) or a heatmap's state: the colours it holds
         self._volumes = {}    # probe volume name → (bake id, blender.probe_volumes.StoredProbes or None if stale)
+        self._positions = {}  # mesh name → (bake key, its shading points in its frame): a dynamic one's, per vertex
         self._reported = set()  # messages already printed
         self.legend = None  # heatmaps.Legend of the last heatmap painted, for the panel
         self.auto_window = {}  # order → (strength, negative share left) of the last shading's Auto window
@@ -165,15 +169,34 @@ class Relighter:
         self._write_colours(scene, list(self._receivers(scene)), totals)
 
     def _write_colours(self, scene, receivers, totals, depsgraph=None):
-        """The colours of each mesh whose light or bake changed, under its displayed_light."""
+        """The colours of each mesh whose light, placement (a dynamic one) or bake changed: a dynamic object's
+        dynamic_radiance where it is lit per vertex, else under its displayed_light."""
         probes = self.probes(scene) if any(is_dynamic(ob.data) for ob, _ in receivers) else []
         for ob, baked in receivers:
-            light = displayed_light(ob, totals[math.isqrt(baked.transfer.shape[-1])], probes, depsgraph)
+            light = totals[math.isqrt(baked.transfer.shape[-1])]
             state = (_bake_key(ob.data), light.tobytes())
-            if self._shaded.get(ob.data.name_full) == state:
+            radiance = None
+            if is_dynamic(ob.data):
+                placed = ob.evaluated_get(depsgraph) if depsgraph is not None else ob
+                state += (np.array(placed.matrix_world).tobytes(), probe_light_of(ob),
+                          tuple(found.bake_id for found in probes))
+                if self._shaded.get(ob.data.name_full) == state:
+                    continue
+                radiance = dynamic_radiance(ob, placed, baked, self._points(ob.data, baked), light, probes)
+            elif self._shaded.get(ob.data.name_full) == state:
                 continue
-            baked.layout.shade(ob.data, baked, light)
+            if radiance is not None:
+                baked.layout.shade_points(ob.data, baked, radiance)
+            else:
+                baked.layout.shade(ob.data, baked, displayed_light(ob, light, probes, depsgraph))
             self._shaded[ob.data.name_full] = state
+
+    def _points(self, mesh, baked):
+        """Its shading points' positions in its own frame (layouts), read once per bake; None for texels."""
+        key = _bake_key(mesh)
+        if self._positions.get(mesh.name_full, (None,))[0] != key:
+            self._positions[mesh.name_full] = (key, baked.layout.points(mesh, baked))
+        return self._positions[mesh.name_full][1]
 
     def _paint_heatmaps(self, receivers, mode):
         """Heatmap colours on one scale; a mesh is painted again only when its values, its bake or the scale
@@ -204,10 +227,50 @@ def displayed_light(ob, light, probes=(), depsgraph=None) -> np.ndarray:
 
 
 def dynamic_light(probes: list, ob, light) -> np.ndarray:
-    """(3, n²) the light a dynamic object placed as `ob` is shaded with, in its own frame: what arrives at its centre
-    through the probe volumes (blender.probe_volumes.StoredProbes) that hold it, else the distant `light`."""
+    """(3, n²) the light a dynamic object placed as `ob` is shaded with at its centre, in its own frame: what arrives
+    at the centre of its bounding box through the probe volumes (blender.probe_volumes.StoredProbes) that hold it,
+    else the distant `light`. Lit per vertex, it is shaded from its dynamic_radiance instead."""
     arriving = probe_volumes.light_at(probes, bounds_centre(ob), light) if probes else None
     return light_in_frame(light if arriving is None else arriving, ob.matrix_world)
+
+
+def probe_light_of(ob) -> str:
+    """Where a dynamic object takes the probes' light (core.settings.PROBE_LIGHT): "vertex" or "centre"."""
+    return getattr(ob, OBJECT_PREFIX + spec.PROBE_LIGHT.name, spec.PROBE_LIGHT.default)
+
+
+def dynamic_radiance(ob, placed, baked, points, light, probes) -> np.ndarray | None:
+    """(P, 3) the radiance of a dynamic object lit per vertex (core.settings.PROBE_LIGHT), placed as `placed` is,
+    under the distant light (3, n²) in world space, from the baked probe volumes `probes`
+    (blender.probe_volumes.StoredProbes); `points` (P, 3): its shading points in its own frame (layouts). None where
+    it is lit at its centre (dynamic_light): by its setting, as a texel bake (no points), or without probes of the
+    light's order.
+
+    Each point is shaded from the light arriving at it, Σ w_p T_p L, turned into the object's frame; the probes'
+    lights T_p L come once per light change (probe_volumes.lights) and are turned before they are blended (a rotation
+    is linear), so a point costs its share of one product per cell (core.probe_grid.shade_points). A point outside
+    every volume gets the distant light."""
+    probes = [found for found in probes if found.order ** 2 == light.shape[-1]]
+    if points is None or probe_light_of(ob) != "vertex" or not probes:
+        return None
+    which, local = probe_volumes.containing(probes, points, np.array(placed.matrix_world, dtype=np.float64))
+    turn = np.array(placed.matrix_world.to_quaternion().to_matrix(), dtype=np.float64).T
+    radiance = np.empty((len(points), 3), dtype=np.float32)
+    for index in (which[:1] if which.min() == which.max() else np.unique(which)):
+        rows = which == index
+        every = bool(rows.all())  # the usual case: the whole object in one volume, no copies
+        transfer = baked.transfer if every else baked.transfer[rows]
+        if index < 0:
+            found = shading.shade(transfer, rotation.rotate(light, turn))
+        else:
+            indices, weights = probe_grid.trilinear_weights(local if every else local[rows], probes[index].resolution,
+                                                            probes[index].valid)
+            arriving = probe_volumes.lights(probes[index], light)  # (P, 3, n²)
+            in_frame = one_thread_product(arriving.reshape(-1, arriving.shape[-1]),
+                                          rotation.sh_matrix(probes[index].order, turn).T).reshape(arriving.shape)
+            found = probe_grid.shade_points(transfer, in_frame, indices, weights)
+        radiance[slice(None) if every else rows] = found
+    return radiance
 
 
 def light_in_frame(light, matrix_world) -> np.ndarray:

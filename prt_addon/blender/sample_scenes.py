@@ -66,7 +66,7 @@ def build_suzanne_scene() -> dict:
     """Suzanne, subdivided twice and smooth, resting on a plane, lit by a sun."""
     material = _albedo_material(_albedo_image())
     objects = {
-        "suzanne": _suzanne_object("Suzanne"),
+        "suzanne": suzanne_object("Suzanne"),
         "plane": _grid_object("Plane", centre=(0.0, 0.0, 0.0), edge_u=(6.0, 0.0, 0.0),
                               edge_v=(0.0, 6.0, 0.0), segments=(20, 20)),
     }
@@ -136,7 +136,7 @@ def _grid_object(name, centre, edge_u, edge_v, segments=None):
     return _link_object(name, _mesh_from_quads(name, positions, quads, loop_uvs), location=centre)
 
 
-def _suzanne_object(name):
+def suzanne_object(name):
     """Suzanne with two Catmull-Clark levels applied in data, her lowest point at the object origin."""
     bm = bmesh.new()
     bm.loops.layers.uv.new(UV_MAP)

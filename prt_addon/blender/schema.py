@@ -1,6 +1,7 @@
 """The settings PRT saves in the file: the scene's bake settings (`prt_bake`), SH lights (`prt_lights`,
 `prt_active_light`), display switches (`prt_display`) and validation settings (`prt_validate`), and each object's
-storage choice (`prt_storage`, `prt_resolution`, ...) and probe volume (`prt_probe_volume`, `prt_probe_resolution`).
+storage choice (`prt_storage`, `prt_resolution`, ...), dynamic object (`prt_dynamic`,
+`prt_probe_light`) and probe volume (`prt_probe_volume`, `prt_probe_resolution`).
 The command line, the checks and the interface all read them, so they register on their own, without any panel or
 operator (register, unregister).
 
@@ -45,9 +46,10 @@ DISPLAY_MODES = [
 ]
 
 
-def setting_property(setting: spec.Setting):
-    """The Blender property for one setting: its label, description, default and range."""
-    common = {"name": setting.label, "description": setting.description, "default": setting.default}
+def setting_property(setting: spec.Setting, **extra):
+    """The Blender property for one setting: its label, description, default and range (and `extra` arguments,
+    e.g. an update callback)."""
+    common = {"name": setting.label, "description": setting.description, "default": setting.default, **extra}
     if isinstance(setting.default, bool):
         return BoolProperty(**common)
     if isinstance(setting.default, tuple):
@@ -90,6 +92,11 @@ class PRT_PG_bake_settings(bpy.types.PropertyGroup):
 
 def _tag_scene(self, context):
     self.id_data.update_tag()
+
+
+def _tag_object(self, context):
+    """Tags the object, from Python too, so the relighting (blender.handlers) shades it again."""
+    self.update_tag()
 
 
 def _split_sun_changed(self, context):
@@ -191,9 +198,9 @@ OBJECT_STORAGE = [(bpy.types.Object, OBJECT_PREFIX + setting.name, setting_prope
     (bpy.types.Object, OBJECT_PREFIX + "new_uv_map", BoolProperty(
         name="Add Lightmap UV Map", default=True, description="Without a chosen UV map, PRT may add its own "
         "'PRT Lightmap' map (Lightmap Pack); the object's own UV maps are never changed")),
-    (bpy.types.Object, OBJECT_PREFIX + spec.DYNAMIC.name, setting_property(spec.DYNAMIC)),
+    (bpy.types.Object, OBJECT_PREFIX + spec.PROBE_LIGHT.name, setting_property(spec.PROBE_LIGHT, update=_tag_object)),
 ] + [(bpy.types.Object, OBJECT_PREFIX + setting.name, setting_property(setting))
-     for setting in (spec.PROBE_VOLUME, spec.PROBE_RESOLUTION)]
+     for setting in (spec.DYNAMIC, spec.PROBE_VOLUME, spec.PROBE_RESOLUTION)]
 
 register, unregister = classes_and_properties(classes, [
     (bpy.types.Scene, "prt_bake", PointerProperty(type=PRT_PG_bake_settings)),

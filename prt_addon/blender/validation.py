@@ -8,10 +8,11 @@ the spread of its passes, is taken out of the measured difference: the two noise
 squares add (core.statistics), in the RMS and vertex by vertex, for the 99th percentile and the worst vertices.
 The report names the object with the largest p99 and where its worst vertices are (indices and world positions).
 
-A dynamic object's bake is its own, against itself only, in its own frame: it is shaded with the light the display
-gives it (blender.relighting.displayed_light: the distant light, or what the probe volume holding it carries there,
-turned into its frame). Outside every probe volume nothing of the scene reaches it, so Cycles renders it alone, the
-other meshes hidden from its pass; inside one, Cycles renders it in the scene.
+A dynamic object's bake is its own, against itself only, in its own frame: it is shaded as the display shades it,
+each vertex from the light the probe volume around it carries there (blender.relighting.dynamic_radiance), or with
+one light (displayed_light: the distant light, or what the probes carry to its centre), turned into its frame.
+Outside every probe volume nothing of the scene reaches it, so Cycles renders it alone, the other meshes hidden
+from its pass; inside one, Cycles renders it in the scene.
 
 With reference "light", Cycles also runs under the scene's lights as they are (an environment's image itself, a
 sun as a Sun lamp, a sky as a constant: cycles.real_light_world), and the report adds that total error beside
@@ -29,11 +30,11 @@ from ..core import lights, lobes, shading
 from ..core.errors import InputError
 from ..core.progress import WrappingJob
 from ..core.statistics import clamped_fraction, compare, worst_object
-from . import geometry, materials, mesh_arrays, storage
+from . import geometry, layouts, materials, mesh_arrays, storage
 from .cycles import CyclesReference, LightGroup, rendered_meshes
 from .lights import scene_lights, split_sun
 from .probe_volumes import light_at
-from .relighting import Relighter, bounds_centre, displayed_light, is_dynamic
+from .relighting import Relighter, bounds_centre, displayed_light, dynamic_radiance, is_dynamic
 
 ENVIRONMENT_SIZE = (256, 512)  # rows, columns: order ≤ 10 is smooth at this resolution
 DEFAULT_SAMPLES = 64  # Cycles samples per pass
@@ -213,20 +214,27 @@ class Validation(WrappingJob):
 
     def _prt_colours(self) -> list:
         start = time.perf_counter()
-        colours = [self.colours(ob, displayed_light(ob, self.lights[meta["order"]], self.probes))
-                   for ob, meta in self.receivers]
+        colours = []
+        for ob, meta in self.receivers:
+            light, radiance = self.lights[meta["order"]], None
+            if is_dynamic(ob.data):  # lit per vertex through the probes, as the display shades it where it stands
+                baked = layouts.stored(ob.data).read(ob.data)
+                radiance = dynamic_radiance(ob, ob, baked, baked.layout.points(ob.data, baked), light, self.probes)
+            colours.append(self.colours(ob, displayed_light(ob, light, self.probes), radiance))
         self.shade_time_s = time.perf_counter() - start
         return colours
 
-    def colours(self, ob, light) -> np.ndarray:
-        """The receiver's PRT colours under `light` (3, n²) in its transfer's frame, per vertex, or per face corner
-        where its bake is per corner, as Cycles bakes it."""
+    def colours(self, ob, light, radiance=None) -> np.ndarray:
+        """The receiver's PRT colours under `light` (3, n²) in its transfer's frame, or from `radiance` (P, 3) formed
+        per shading point (blender.relighting.dynamic_radiance), per vertex, or per face corner where its bake is
+        per corner, as Cycles bakes it."""
         transfer, _ = storage.read_transfer(ob.data)
         corner_points = storage.corner_points_of(ob.data)
-        if corner_points is None:
-            return prt_colours(transfer, light, self.albedos[ob])
-        corner_albedo = self.albedos[ob][mesh_arrays.mesh_corner_vertices(ob.data)]
-        return prt_colours(transfer[corner_points], light, corner_albedo)
+        albedo = self.albedos[ob]
+        if corner_points is not None:
+            transfer, albedo = transfer[corner_points], albedo[mesh_arrays.mesh_corner_vertices(ob.data)]
+            radiance = None if radiance is None else radiance[corner_points]
+        return prt_colours(transfer, light, albedo) if radiance is None else albedo * np.maximum(radiance, 0.0)
 
     def store_errors(self, comparisons):
         """Each receiver's per-vertex (per-corner) error against Cycles on its mesh, for the viewport's Difference

@@ -9,9 +9,15 @@ The SH light arriving at a point p from distant light L is Σ_p w_p T_p L, w the
 of p's cell, with those inside geometry given no weight and the rest scaled to sum to 1: a point beside a wall is
 lit by the probes on its own side. A point outside the lattice of probe centres takes the nearest cell's face
 (its coordinates are clamped to it); a point whose 8 probes are all inside geometry receives no light.
+
+The sum is linear in L, so it is formed from the probes' lights T_p L, computed once per light change (probe_lights):
+a point's light is then a gather and a weighted sum (blend), and a moving object's vertices are shaded from them
+without forming one matrix per vertex (shade_points).
 """
 
 import numpy as np
+
+from .arrays import one_thread_product
 
 
 def probe_points(resolution) -> np.ndarray:
@@ -26,26 +32,77 @@ def probe_positions(matrix_world, resolution) -> np.ndarray:
     return probe_points(resolution) @ matrix[:3, :3].T + matrix[:3, 3]
 
 
-def trilinear_weights(local_point, resolution, valid) -> tuple[np.ndarray, np.ndarray]:
-    """(probe indices (8,), weights (8,)) of a point (3,) in the volume's frame: the corners of its cell of probe
-    centres, weighted trilinearly over the valid ones (`valid` (P,) bool) and renormalised to sum to 1; all zero
-    where none of them is valid. Along an axis of one probe, that probe carries the weight."""
-    resolution = np.asarray(resolution, dtype=np.int64)
-    # The point in probe units: probe i sits at i, the lattice spans 0..n−1; clamped onto it.
-    grid = np.clip((np.asarray(local_point, dtype=np.float64) + 1.0) * resolution / 2.0 - 0.5, 0.0, resolution - 1)
-    low = np.minimum(np.floor(grid).astype(np.int64), np.maximum(resolution - 2, 0))
-    fraction = grid - low
-    corners = np.array([(a, b, c) for a in (0, 1) for b in (0, 1) for c in (0, 1)])
-    cells = np.minimum(low + corners, resolution - 1)  # (8, 3): an axis of one probe repeats it with weight 0
-    weights = np.prod(np.where(corners == 1, fraction, 1.0 - fraction), axis=1)
-    indices = np.ravel_multi_index(cells.T, tuple(resolution))
-    weights = weights * np.asarray(valid, dtype=bool)[indices]
-    total = weights.sum()
-    return indices, (weights / total if total > 0.0 else weights)
+def trilinear_weights(local_points, resolution, valid) -> tuple[np.ndarray, np.ndarray]:
+    """(probe indices (..., 8), weights (..., 8)) of points (..., 3) in the volume's frame: the corners of each
+    point's cell of probe centres, weighted trilinearly over the valid ones (`valid` (P,) bool) and renormalised to
+    sum to 1; all zero where none of them is valid. Along an axis of one probe, that probe carries the weight. The
+    first index is the cell's own (its lowest corner), so points with the same first index share all 8 probes.
+
+    Axis by axis, on columns: numpy reduces an (N, 3) array along its rows with an inner loop of 3 (core.arrays),
+    which made this the largest part of shading a moving 100 k-vertex object."""
+    resolution = [int(n) for n in resolution]
+    points = np.asarray(local_points, dtype=np.float64)
+    shape = points.shape[:-1]
+    points = points.reshape(-1, 3)
+    strides = (resolution[1] * resolution[2], resolution[2], 1)
+    base = np.zeros(len(points), dtype=np.int64)
+    weights = np.ones((len(points), 1))
+    offsets = np.zeros(1, dtype=np.int64)
+    for axis, count in enumerate(resolution):
+        # The point in probe units: probe i sits at i, the lattice spans 0..n−1; clamped onto it.
+        grid = np.clip((points[:, axis] + 1.0) * (count / 2.0) - 0.5, 0.0, count - 1)
+        low = np.minimum(np.floor(grid).astype(np.int64), max(count - 2, 0))
+        fraction = grid - low
+        base += low * strides[axis]
+        # Corners x slowest; an axis of one probe repeats it, with weight 0 on the repeat.
+        weights = (weights[:, :, None] * np.stack([1.0 - fraction, fraction], axis=1)[:, None, :]).reshape(
+            len(points), -1)
+        offsets = (offsets[:, None] + np.array([0, min(1, count - 1) * strides[axis]])).reshape(-1)
+    indices = base[:, None] + offsets
+    weights *= np.asarray(valid, dtype=bool)[indices]
+    total = sum(weights[:, corner] for corner in range(8))
+    weights /= np.where(total > 0.0, total, 1.0)[:, None]
+    return indices.reshape(shape + (8,)), weights.reshape(shape + (8,))
 
 
-def incoming_light(matrices, indices, weights, light) -> np.ndarray:
-    """(3, n²) the SH of the radiance arriving where the probes `indices` carry `weights`: Σ w_p T_p L, with
-    matrices (P, C, n², n²) (C = 1 or 3) and the distant light (3, n²), each channel through its own matrix."""
-    blended = np.einsum("p,pcij->cij", weights, matrices[indices])  # (C, n², n²)
-    return np.einsum("cij,cj->ci", np.broadcast_to(blended, (3,) + blended.shape[1:]), light)
+def probe_lights(matrices, light) -> np.ndarray:
+    """(P, 3, n²) the SH of the radiance arriving at each probe from the distant light (3, n²): T_p L, one product
+    per probe, each channel through its own matrix where they are coloured (matrices (P, C, n², n²), C = 1 or 3).
+    Computed once per light change; every point's light is then a blend of these (blend, shade_points)."""
+    matrices = np.asarray(matrices)
+    if matrices.shape[1] == 1:
+        return np.einsum("pij,cj->pci", matrices[:, 0], light)
+    return np.einsum("pcij,cj->pci", matrices, light)
+
+
+def blend(lights, indices, weights) -> np.ndarray:
+    """(..., 3, n²) Σ_k w_k lights[p_k]: the SH light arriving where the probes `indices` (..., 8) carry `weights`,
+    from the probes' lights (P, 3, n²)."""
+    return np.einsum("...k,...kcj->...cj", weights, lights[indices])
+
+
+def shade_points(transfer, lights, indices, weights) -> np.ndarray:
+    """(N, 3) float32 radiance Σ_k w_k transfer · lights[p_k] at N shading points, transfer (N, n²) (grey) or
+    (N, 3, n²) (coloured: channel by channel), with their probes' indices and weights (N, 8) from trilinear_weights.
+
+    The same as shading each point with its blend(), without forming the N blended lights (8 gathers of 3·n² values
+    per point): points are grouped by their cell, whose 8 probes they share, and each group's transfer rows meet
+    those probes' lights in one matrix product, (m, n²) by (n², 8·3); then each point weighs its 8 products."""
+    count, size = len(transfer), lights.shape[-1]
+    order = np.argsort(indices[:, 0], kind="stable")
+    cells = indices[order, 0]
+    starts = np.flatnonzero(np.r_[True, cells[1:] != cells[:-1]]) if count else np.zeros(0, dtype=np.int64)
+    ends = np.r_[starts[1:], count].astype(np.int64)
+    rows = np.asarray(transfer, dtype=np.float32)[order]
+    lights = np.asarray(lights, dtype=np.float32)
+    products = np.empty((count, 8, 3), dtype=np.float32)
+    for start, end in zip(starts, ends):
+        around = lights[indices[order[start]]]  # (8, 3, n²)
+        if rows.ndim == 2:
+            products[start:end] = one_thread_product(rows[start:end], around.reshape(-1, size).T).reshape(-1, 8, 3)
+        else:
+            for channel in range(3):
+                products[start:end, :, channel] = one_thread_product(rows[start:end, channel], around[:, channel].T)
+    radiance = np.empty((count, 3), dtype=np.float32)
+    radiance[order] = np.einsum("nk,nkc->nc", weights[order].astype(np.float32), products)
+    return radiance

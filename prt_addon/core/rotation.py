@@ -36,6 +36,15 @@ def band_matrices(order, R):
     return blocks
 
 
+def sh_matrix(order, R) -> np.ndarray:
+    """(n², n²) the block-diagonal matrix of band_matrices: rotate(c, R) = c @ sh_matrix(order, R).T, as one product
+    for many rows at once."""
+    matrix = np.zeros((order * order, order * order))
+    for l, block in enumerate(band_matrices(order, R)):
+        matrix[l * l:(l + 1) ** 2, l * l:(l + 1) ** 2] = block
+    return matrix
+
+
 def rotate(coeffs, R):
     """Coefficients (..., n²) of f(Rᵀω) from those of f (any leading dims, e.g. RGB)."""
     coeffs = np.asarray(coeffs, dtype=np.float64)

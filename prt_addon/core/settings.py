@@ -88,6 +88,13 @@ TEXEL = (STORAGE, RESOLUTION, TEXEL_SIZE)
 # its own frame, and the display turns the SH lights into that frame (blender.request, blender.relighting).
 DYNAMIC = Setting("dynamic", "Dynamic", "Bake its self-shadowing in its own frame, against itself only, so it may "
                   "move and turn without a rebake; other objects neither shadow it nor are shadowed by it", False)
+# Per object: where a dynamic object takes the probes' light (core.probe_grid, blender.dynamic_shading).
+PROBE_LIGHT = Setting("probe_light", "Probe Light", "Where a dynamic object takes the light the probe volume carries",
+                      "vertex", choices=(
+    ("vertex", "Per Vertex", "Each vertex its own blend of the probes around it: shadows fall across the object"),
+    ("centre", "At Centre", "One blend at the centre of its bounding box for the whole object: for objects small "
+                            "beside the probe spacing"),
+))
 # Per object: an Empty whose cube holds a grid of PRT probes (core.probe_transfer, core.probe_grid), baked with the
 # static scene; the dynamic objects inside it are lit through them (blender.probe_volumes).
 PROBE_VOLUME = Setting("probe_volume", "Probe Volume", "Its cube holds a grid of PRT probes, baked with the static "

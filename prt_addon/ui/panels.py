@@ -96,6 +96,9 @@ class PRT_PT_storage(ActiveMeshPanel, bpy.types.Panel):
         sub.enabled = not ob.prt_uv_map
         sub.prop(ob, "prt_new_uv_map")
         layout.prop(ob, "prt_dynamic")
+        row = layout.row()
+        row.enabled = ob.prt_dynamic
+        row.prop(ob, "prt_probe_light")
 
 
 class PRT_PT_bake_info(ActiveMeshPanel, bpy.types.Panel):

@@ -146,14 +146,50 @@ def test_an_axis_of_one_probe_gives_it_the_weight():
     assert set(indices[weights > 0]) == {0} and weights.sum() == pytest.approx(1.0)
 
 
+def incoming(matrices, indices, weights, light):
+    return probe_grid.blend(probe_grid.probe_lights(matrices, light), np.asarray(indices), np.asarray(weights))
+
+
 def test_incoming_light_is_the_weighted_sum_of_the_probes_products():
     light = np.arange(3 * SIZE, dtype=float).reshape(3, SIZE)
     grey = np.stack([np.eye(SIZE)[None], 3 * np.eye(SIZE)[None]])           # (2, 1, n², n²)
-    np.testing.assert_allclose(probe_grid.incoming_light(grey, np.array([0, 1]), np.array([0.5, 0.5]), light),
-                               2 * light)
+    np.testing.assert_allclose(incoming(grey, [0, 1], [0.5, 0.5], light), 2 * light)
     coloured = np.zeros((1, 3, SIZE, SIZE))
     coloured[0, :, 0, 0] = (1.0, 2.0, 4.0)  # each channel keeps only its own constant term, scaled
-    shown = probe_grid.incoming_light(coloured, np.array([0, 0]), np.array([0.25, 0.75]), light)
+    shown = incoming(coloured, [0, 0], [0.25, 0.75], light)
     expected = np.zeros((3, SIZE))
     expected[:, 0] = light[:, 0] * (1.0, 2.0, 4.0)
     np.testing.assert_allclose(shown, expected)
+
+
+def test_weights_of_many_points_are_each_points_own():
+    rng = np.random.default_rng(3)
+    points = rng.uniform(-1.2, 1.2, (50, 3))
+    valid = rng.random(3 * 4 * 2) > 0.3
+    indices, weights = probe_grid.trilinear_weights(points, (3, 4, 2), valid)
+    assert indices.shape == weights.shape == (50, 8)
+    for point, row_indices, row_weights in zip(points, indices, weights):
+        one_indices, one_weights = probe_grid.trilinear_weights(point, (3, 4, 2), valid)
+        np.testing.assert_array_equal(one_indices, row_indices)
+        np.testing.assert_allclose(one_weights, row_weights)
+
+
+@pytest.mark.parametrize("channels", [1, 3])
+def test_shading_points_by_cell_is_each_points_transfer_against_its_blended_light(channels):
+    """Against the sum written out point by point: Σ_k w_k Σ_j t_j (T_{p_k} L)_j, channel by channel."""
+    rng = np.random.default_rng(channels)
+    resolution = (4, 3, 3)
+    matrices = rng.standard_normal((36, channels, SIZE, SIZE))
+    light = rng.standard_normal((3, SIZE))
+    points = rng.uniform(-1.1, 1.1, (300, 3))
+    indices, weights = probe_grid.trilinear_weights(points, resolution, rng.random(36) > 0.2)
+    transfer = rng.standard_normal((300, SIZE) if channels == 1 else (300, 3, SIZE))
+    shown = probe_grid.shade_points(transfer, probe_grid.probe_lights(matrices, light), indices, weights)
+    expected = np.zeros((300, 3))
+    for n in range(300):
+        for k in range(8):
+            for c in range(3):
+                arriving = matrices[indices[n, k], min(c, channels - 1)] @ light[c]
+                row = transfer[n] if channels == 1 else transfer[n, c]
+                expected[n, c] += weights[n, k] * row @ arriving
+    np.testing.assert_allclose(shown, expected, rtol=1e-4, atol=1e-4 * np.abs(expected).max())

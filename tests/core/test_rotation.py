@@ -191,3 +191,8 @@ def test_zonal_to_sh_matches_quadrature():
     expected = np.stack([project(6, lambda d, axis=axis: profile(d @ axis)) for axis in directions])
     assert np.abs(rotation.zonal_to_sh(zonal, directions) - expected).max() < 1e-12
 
+
+
+def test_the_full_matrix_is_the_dense_rotation():
+    matrix = rotation.quaternion_to_matrix(np.random.default_rng(4).normal(size=4))
+    assert np.abs(rotation.sh_matrix(5, matrix) - rotation_matrix(5, matrix)).max() < 1e-14
