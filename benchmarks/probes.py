@@ -174,8 +174,8 @@ def accuracy(args):
     for resolution, (bake_s, errors) in rows.items():
         spacing = sample_scenes.ROOM_SIZE / resolution[0]
         cells = " ".join(f"{100 * c.error:>12.2f}%" for c in errors)
-        print(f"{'×'.join(map(str, resolution)):>9} {math.prod(resolution):>4} {spacing:>7.2f}m {bake_s:>6.1f}s {cells} "
-              f"{100 * max(c.error for c in errors):>6.2f}%")
+        print(f"{'×'.join(map(str, resolution)):>9} {math.prod(resolution):>4} {spacing:>7.2f}m {bake_s:>6.1f}s "
+              f"{cells} {100 * max(c.error for c in errors):>6.2f}%")
     print(f"{'baked static at ' + names[0] + ', moved (stale)':>39} "
           + " ".join(f"{100 * c.error:>12.2f}%" for c in stale))
     finest = max(c.error for c in rows[resolutions[-1]][1])
@@ -250,8 +250,9 @@ def live(args):
     print(f"live: {probes:,} probes, a dynamic sphere of {len(ob.data.vertices):,} vertices moving and turning every "
           f"update, order {args.order}, median of {args.steps} updates")
     print(f"  light change + move to colours written, main thread's CPU time: 1 light {cpu:.1f} ms, 8 lights (one "
-          f"moving) {ms['eight_cpu']:.1f} ms; wall time {one:.1f} ms and {ms['eight']:.1f} ms (ratio {wall_ratio:.2f}), "
-          f"whole view_layer.update() {full:.1f} ms, at load average {os.getloadavg()[0]:.2f} on {os.cpu_count()} cores")
+          f"moving) {ms['eight_cpu']:.1f} ms; wall time {one:.1f} ms and {ms['eight']:.1f} ms (ratio "
+          f"{wall_ratio:.2f}), whole view_layer.update() {full:.1f} ms, at load average {os.getloadavg()[0]:.2f} on "
+          f"{os.cpu_count()} cores")
     print(f"  parts (CPU time): the probes' product {parts['probes']:.1f} ms, per-vertex shading {parts['shade']:.1f} "
           f"ms, colour write {parts['write']:.1f} ms")
     print(f"per update at {len(ob.data.vertices):,} vertices and {probes:,} probes: {cpu:.1f} ms   goal <= "

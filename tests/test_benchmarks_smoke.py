@@ -171,6 +171,20 @@ def test_relight_smoke_run():
         number(found(rf"^order +{order} at 10,000 vertices: {{n}} ms per update", out).group(1))
 
 
+def test_probes_smoke_run():
+    out = run_benchmark("probes", "--quick")
+    found(r"^Suzanne \(7,958 vertices, dynamic, lit per vertex\) in the demo room", out)
+    for resolution in ("2×2×1", "4×4×2"):
+        row = found(rf"^ +{resolution} +{{n}} +{{n}}m +{{n}}s(( +{{n}}%){{5}}) +{{n}}%$", out)
+        assert len(re.findall(NUMBER, row.group(4))) == 5
+    stale = found(r"^ +baked static at open, moved \(stale\)(( +{n}%){5})$", out)
+    assert all(number(value) > 0 for value in re.findall(NUMBER, stale.group(1)))
+    goal_line(r"^worst placement at the finest spacing: {n} % RMS   goal <= 5 %", out, "<=", 5)
+    number(found(r"^  parts \(CPU time\): the probes' product {n} ms, per-vertex shading {n} ms", out).group(2))
+    goal_line(r"^per update at 482 vertices and 64 probes: {n} ms   goal <= 33 ms", out, "<=", 33)
+    goal_line(r"^8 lights ÷ 1 light \(one moving\): {n}   goal <= 1\.1", out, "<=", 1.1)
+
+
 def test_texels_smoke_run():
     out = run_benchmark("texels", "--quick")
     goal_line(r"^room: floor and walls at 64 × 64 .*: {n} s \(gathering and checks included\)   goal <= 60 s", out,
