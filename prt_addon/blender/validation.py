@@ -215,12 +215,13 @@ class Validation(WrappingJob):
     def _prt_colours(self) -> list:
         start = time.perf_counter()
         colours = []
+        probes = Relighter().probes(self.context.scene)  # as they are now: a volume may have been baked again since
         for ob, meta in self.receivers:
             light, radiance = self.lights[meta["order"]], None
             if is_dynamic(ob.data):  # lit per vertex through the probes, as the display shades it where it stands
                 baked = layouts.stored(ob.data).read(ob.data)
-                radiance = dynamic_radiance(ob, ob, baked, baked.layout.points(ob.data, baked), light, self.probes)
-            colours.append(self.colours(ob, displayed_light(ob, light, self.probes), radiance))
+                radiance = dynamic_radiance(ob, ob, baked, baked.layout.points(ob.data, baked), light, probes)
+            colours.append(self.colours(ob, displayed_light(ob, light, probes), radiance))
         self.shade_time_s = time.perf_counter() - start
         return colours
 
