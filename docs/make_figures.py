@@ -8,7 +8,7 @@ the same band-limited light (order 8, every surface white, direct light only):
 (a) a dynamic sphere over a floor under a sun: Cycles shows its shadow on the floor, PRT does not (a dynamic
     object casts no shadow on the static scene);
 (b) a row of small dynamic spheres crossing a wall's shadow edge inside a probe volume of 1 m spacing: each sphere
-    takes the trilinear blend of the probes around its centre, so those within a spacing of the edge get light
+    (lit at its centre, as a small object may be) takes the trilinear blend of the probes around its centre, so those within a spacing of the edge get light
     blended across it, while Cycles shows the change where the edge is.
 Each panel's numbers, printed and read back by tests/test_figures.py, are measured on the two renders: (a) the
 floor's mean brightness in a disc at the shadow's centre, Cycles ÷ PRT; (b) per sphere, the distance of its centre
@@ -83,6 +83,7 @@ def dynamic_sphere(location, radius, segments=32):
     ob = bpy.context.object
     ob.data.shade_smooth()
     ob.prt_dynamic = True
+    ob.prt_probe_light = "centre"  # small beside the probe spacing: one blend for the whole sphere
     return ob
 
 
