@@ -134,7 +134,7 @@ class TransferJob(Job):
         self._rays = [np.zeros(len(r.positions), dtype=np.int64) for r in receivers]
         self._skipped = [np.zeros(len(r.positions), dtype=bool) for r in receivers]
         self._rules = [rules.measured(len(r.positions)) for r in receivers]
-        self._curves = [[] for _ in receivers]  # each chunk's core.error_curve rows, per receiver
+        self._curves = {}  # chunk index → its core.error_curve rows, summed in chunk order whatever order they came
         self._rule_error = [np.zeros(len(r.positions)) for r in receivers]
         self.records = []  # interreflected: HitRecords per chunk, rows already global
         self.albedo = albedo
@@ -192,7 +192,7 @@ class TransferJob(Job):
         self._rays[receiver_index][rows] = result.rays
         self._skipped[receiver_index][rows] = result.skipped
         self._rules[receiver_index][rows] = result.rules
-        self._curves[receiver_index].append(result.curve)
+        self._curves[chunk_index] = result.curve
         self._rule_error[receiver_index][rows] = result.rule_error
         if result.records is not None:
             solved = self._vertex_offsets[receiver_index] + rows[result.records.vertex]
@@ -301,10 +301,10 @@ class TransferJob(Job):
         after the bounces. `own`: this job's results; its chunks took `rays_s` seconds."""
         scale = lobes.unshadowed_norm(self.settings.order)
         kept = range(stored) if index is None else [index]
-        curves = [curve for i in kept for curve in self._curves[i]]
+        curves = [self._curves[chunk] for chunk in sorted(self._curves) if self.chunks[chunk][0] in kept]
         points = sum(len(self.receivers[i].positions) for i in kept)
         if index is None:
-            busy = sum(curve[-1, 0] for receiver in self._curves for curve in receiver)
+            busy = sum(curve[-1, 0] for curve in self._curves.values())
             rows = error_curve.rounds(curves, points, scale, rays_s / busy if busy > 0 else 0.0)
         else:
             rows = error_curve.part(bake_rows, curves, points, scale)
