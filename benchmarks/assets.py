@@ -495,14 +495,19 @@ def goal_lines(rows) -> list[str]:
 
 
 # -- the run -----------------------------------------------------------------------------------------------------
+def cycles_arguments(parser, quick_samples: int, quick_passes: int):
+    """--samples and --passes of the Cycles renders a benchmark compares with, and what --quick makes them."""
+    parser.add_argument("--samples", type=int, help=f"Cycles samples per pass (default "
+                        f"{validation.DEFAULT_SAMPLES}; --quick {quick_samples})")
+    parser.add_argument("--passes", type=int, help=f"Cycles passes (default {validation.DEFAULT_PASSES}; "
+                        f"--quick {quick_passes})")
+
+
 def build_parser(cases):
     parser = argparse.ArgumentParser(description="real assets baked at the defaults, validated against Cycles")
     parser.add_argument("--quick", action="store_true",
                         help="smoke run: the small cases only, 64-sample bakes, Cycles 2 × 16 samples")
-    parser.add_argument("--samples", type=int, help=f"Cycles samples per pass (default "
-                        f"{validation.DEFAULT_SAMPLES}; --quick 16)")
-    parser.add_argument("--passes", type=int, help=f"Cycles passes (default {validation.DEFAULT_PASSES}; "
-                        f"--quick 2)")
+    cycles_arguments(parser, quick_samples=16, quick_passes=2)
     parser.add_argument("--cases", help="comma-separated case names (default: all; --quick: the small ones): "
                         + ", ".join(case.name for case in cases))
     parser.add_argument("--reference-points", type=int, default=Settings.reference_points,

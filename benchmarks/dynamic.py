@@ -32,7 +32,7 @@ sys.path.insert(0, ROOT)
 import bpy  # noqa: E402  (bpy before mathutils, which the add-on imports)
 import numpy as np  # noqa: E402
 
-from benchmarks.assets import add_low_sun, fresh_file  # noqa: E402
+from benchmarks.assets import add_low_sun, cycles_arguments, fresh_file  # noqa: E402
 from prt_addon.blender import display, mesh_arrays, storage, validation  # noqa: E402
 from prt_addon.blender.relighting import Relighter, displayed_light  # noqa: E402
 from prt_addon.blender.scene_bake import SceneBake  # noqa: E402
@@ -130,10 +130,7 @@ def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description="a dynamic object turned under a fixed sun, against Cycles")
     parser.add_argument("--quick", action="store_true",
                         help="smoke run: 2 rotations, a 32-sample bake, Cycles 2 × 8 samples")
-    parser.add_argument("--samples", type=int, help=f"Cycles samples per pass (default "
-                        f"{validation.DEFAULT_SAMPLES}; --quick 8)")
-    parser.add_argument("--passes", type=int, help=f"Cycles passes (default {validation.DEFAULT_PASSES}; "
-                        f"--quick 2)")
+    cycles_arguments(parser, quick_samples=8, quick_passes=2)
     args = parser.parse_args(argv)
     samples = args.samples or (8 if args.quick else validation.DEFAULT_SAMPLES)
     passes = args.passes or (2 if args.quick else validation.DEFAULT_PASSES)
