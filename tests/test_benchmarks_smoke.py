@@ -92,6 +92,7 @@ def test_bake_smoke_run():
     assert rays > 1000
 
 
+@pytest.mark.study  # two minutes of both engines' bakes, the same script on every Blender: once per CI run
 def test_engines_smoke_run(tmp_path):
     out = run_benchmark("engines", "--quick", "--plot", tmp_path / "curves.png")
     for case in ("sphere flat", "cylinder"):
@@ -171,6 +172,7 @@ def test_relight_smoke_run():
         number(found(rf"^order +{order} at 10,000 vertices: {{n}} ms per update", out).group(1))
 
 
+@pytest.mark.study  # a minute of probe bakes and Cycles, the same script on every Blender: once per CI run
 def test_probes_smoke_run():
     out = run_benchmark("probes", "--quick")
     found(r"^Suzanne \(7,958 vertices, dynamic, lit per vertex\) in the demo room", out)
