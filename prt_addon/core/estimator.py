@@ -74,10 +74,11 @@ def shadowed_chunk(caster: RayCaster, positions, normals, inward, keys, settings
     the same `labels` entry share their rays (None: each row casts its own); contact is judged a step along
     `surface_steps` (None: `inward`). A row with a nonzero `clip` normal (c, 3; None: none) gathers only the
     directions above that plane, as Cycles' corner on that face does (core.corners): the lune's closed form less what
-    its own rays, cast from above that plane a step into its face, find blocked in it. Contact never judges the rows `against` their faces ((c,) bool; None:
-    none): shaded from behind, the faces at their vertex would seem to face them, their own first, and their clip
-    already starts their rays behind their face. The result's curve has a row after each round
-    (core.error_curve), its seconds those this generator spent working, not those it waited between yields."""
+    its own rays, cast from above that plane a step into its face, find blocked in it. Contact never judges the rows
+    `against` their faces ((c,) bool; None: none): shaded from behind, the faces at their vertex would seem to face
+    them, their own first, and their clip already starts their rays behind their face. The result's curve has a row
+    after each round (core.error_curve), its seconds those this generator spent working, not those it waited
+    between yields."""
     resumed, busy = time.perf_counter(), 0.0
     order, replicates = settings.order, settings.replicates
     positions = positions - caster.center

@@ -312,5 +312,6 @@ class TransferJob(Job):
             bounced_s = (rows[-1].seconds + sum(self.phase_times.get(phase, 0.0) for phase in BOUNCE_PHASES)
                          if index is None else bake_rows[len(rows)].seconds)
             rows = error_curve.then(rows, error_curve.BOUNCES, bounced_s, rows[-1].rays,
-                                    np.concatenate([np.hypot(own[i].rel_error, own[i].rel_rule_error) for i in kept]))
+                                    np.concatenate([rules.point_errors(own[i].rel_error, own[i].rel_rule_error)
+                                                    for i in kept]))
         return rows

@@ -148,8 +148,8 @@ def cones_and_blocked_transfer(order, apexes, normals, polygons):
 
 
 def lune_transfer(order, normals, planes):
-    """(c, order²): (1/π) ∫ (n·ω) Y_k(ω) dω over the directions in front of both each unit normal n (c, 3) and its
-    plane's unit normal m (c, 3): the part of n's unshadowed transfer that a plane through the point leaves open, a
+    """(c, order²): (1/π) ∫ (n·ω) Y_k(ω) dω over the directions in front of both each unit normal n (c, 3) and
+    its plane's unit normal m (c, 3): the part of n's unshadowed transfer that a plane through the point leaves open, a
     lune of cosine-weighted share (1 + n·m)/2. Its corners, counter-clockwise from the centre, start at the middle
     of its edge on m's plane, then its tip −e, the middle of its edge on n's horizon, its tip e: so no edge spans
     half a circle, and the fan that measures its solid angle (_solid_angle) has no flat triangle."""

@@ -45,11 +45,16 @@ def doubt(order: int, normals: np.ndarray, planes: np.ndarray) -> np.ndarray:
                           axis=1)
 
 
+def point_errors(rel_error: np.ndarray, rule_error: np.ndarray) -> np.ndarray:
+    """Each point's estimated error: its noise (`rel_error`, relative) and its rule's doubt (`rule_error`, relative
+    alike) as independent errors, added in quadrature."""
+    return np.hypot(rel_error, rule_error)
+
+
 def estimate(rel_error: np.ndarray, rule_error: np.ndarray) -> dict:
-    """A report's error estimate over points: each point's noise (`rel_error`, relative) and its rule's doubt
-    (`rule_error`, relative alike) as independent errors, added in quadrature; their RMS and largest, and the
-    doubt's own RMS, the part of the estimate the rules make (its square the part of the RMS's square)."""
-    total = np.hypot(rel_error, rule_error)
+    """A report's error estimate over points (point_errors): their RMS and largest, and the doubt's own RMS, the part
+    of the estimate the rules make (its square the part of the RMS's square)."""
+    total = point_errors(rel_error, rule_error)
     return {"est_rms_rel_error": rms(total), "est_max_rel_error": float(total.max(initial=0.0)),
             "est_rule_rms_rel_error": rms(rule_error)}
 

@@ -271,7 +271,7 @@ class RefiningJob(Job):
         the lattices after the first job gave."""
         summary = self.first.summary(results, self.receivers, self.progress.elapsed)
         if len(self.jobs) > 1:
-            errors = [np.hypot(result.rel_error, result.rel_rule_error) for result in results]  # the estimate's
+            errors = [rules.point_errors(result.rel_error, result.rel_rule_error) for result in results]
             summary.error_curve = error_curve.then(summary.error_curve, error_curve.TEXELS, summary.time_s,
                                                    summary.rays, np.concatenate(errors))
             for receiver, error in zip(self.receivers, errors):

@@ -1,5 +1,6 @@
 """The sidebar tab "PRT" in the 3D View: where every PRT panel lives (SidebarPanel), and the Bake panel with the
-active object's stored bake, or the active probe volume's probes. The Lights and Display panels are in lights.py, Validation in validation.py."""
+active object's stored bake, or the active probe volume's probes. The Lights and Display panels are in lights.py,
+Validation in validation.py."""
 
 import bpy
 
