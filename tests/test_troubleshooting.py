@@ -21,6 +21,7 @@ On the page, a message is a line `> `...`` (a blockquoted code span), what it na
 distinctive piece between the placeholders must be made of distinctive pieces of the code's strings."""
 
 import ast
+from functools import cache
 import re
 from pathlib import Path
 
@@ -118,12 +119,17 @@ def _strings_in(definition) -> list:
     return found
 
 
+@cache
+def sources() -> list[tuple[str, ast.Module]]:
+    """(path under prt_addon/, syntax tree) of every module, parsed once for both tests."""
+    return [(path.relative_to(PACKAGE).as_posix(), ast.parse(path.read_text(encoding="utf-8")))
+            for path in sorted(PACKAGE.rglob("*.py"))]
+
+
 def message_sites() -> list[tuple[str, str]]:
     """(file:line, text (text_of)) of every message site in prt_addon/."""
     sites, seen = [], set()
-    for path in sorted(PACKAGE.rglob("*.py")):
-        relative = path.relative_to(PACKAGE).as_posix()
-        tree = ast.parse(path.read_text(encoding="utf-8"))
+    for relative, tree in sources():
         nodes = []
         for node in ast.walk(tree):
             nodes += _site_texts(node)
@@ -162,8 +168,7 @@ def code_phrases() -> list[str]:
     """The distinctive constant pieces of every string in prt_addon/ but docstrings, longest first: a message may be
     put together from strings kept apart from its site (a scale's wording, a constant's sentence)."""
     found = set()
-    for path in PACKAGE.rglob("*.py"):
-        tree = ast.parse(path.read_text(encoding="utf-8"))
+    for _, tree in sources():
         docstrings = {id(node.body[0].value) for node in ast.walk(tree)
                       if isinstance(node, (ast.Module, ast.ClassDef, ast.FunctionDef, ast.AsyncFunctionDef))
                       and ast.get_docstring(node) is not None}
