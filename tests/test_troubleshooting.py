@@ -35,15 +35,15 @@ MESSAGE_CALLS = {"InputError": 0, "StaleBake": 0, "ArgumentTypeError": 0, "_Refu
                  "PermissionError": 0, "_check": 1, "_report_once": 0}
 MESSAGE_LISTS = {"notes", "problems"}
 LOUD_LEVELS = {"ERROR", "WARNING"}
-# Functions and module constants (file under prt_addon/, name) whose strings are problems in words that another
-# message site tells.
+# Functions and module constants (file under prt_addon/, name) whose strings are problems or notes in words that
+# another message site tells (a bake's notes are its operator's warnings).
 MESSAGE_DEFINITIONS = {
     ("core/bake.py", "problems"), ("core/engines/__init__.py", "EMBREE_MISSING"),
     ("core/engines/__init__.py", "AUTO_FALLBACK"), ("core/outputs.py", "unwritable"), ("core/outputs.py", "refusals"),
     ("core/shards.py", "refusals"), ("core/shards.py", "_part_problem"), ("core/shards.py", "_missing_shards"),
     ("core/part_file.py", "_description_header"), ("core/part_file.py", "problem"),
     ("blender/materials.py", "lost_note"), ("blender/aiming.py", "turn"), ("blender/lights.py", "aim_sun"),
-    ("ui/drive.py", "_pick"),
+    ("ui/drive.py", "_pick"), ("blender/texel_plan.py", "choose"), ("blender/probe_volumes.py", "write"),
 }
 PLACEHOLDER = re.compile(r"<[^<>]+>")
 QUOTED = re.compile(r"^> `+ ?(.*?) ?`+\s*$", re.MULTILINE)
