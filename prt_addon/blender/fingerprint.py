@@ -5,9 +5,10 @@ parts, so a check can say what changed and Bake Stale rebakes only the objects w
   vertex and the triangles' corners.
 - transform: matrix_world; nothing for a dynamic object, whose transfer turns with it.
 - occluders (shadowed and interreflected bakes): the world-space triangles of every other visible mesh instance but
-  the dynamic ones, as one set (none for a dynamic object: it is its own occluder, in its geometry). Any of them may shadow the object, so moving one makes every other receiver stale: the simplest
-  rule that is never wrong. Interreflected bakes also read their world-space corner normals and albedo, since
-  they reflect light onto the object.
+  the dynamic ones, as one set (none for a dynamic object: it is its own occluder, in its geometry). Any of them
+  may shadow the object, so moving one makes every other receiver stale: the simplest rule that is never wrong.
+  Interreflected bakes also read their world-space corner normals and albedo, since they reflect light onto the
+  object.
 - materials: what the object's own materials give the bake: subsurface settings (shadowed and interreflected) and
   albedo per face corner (interreflected).
 - settings: the bake settings the mode reads and the stored layout's version (core.fingerprint.settings_values).
@@ -42,7 +43,7 @@ def fingerprints(depsgraph, objects, settings, storage_options=None) -> dict[str
 
 def _settings_digest(ob, settings, storage_options) -> str:
     """The settings part: the bake's settings, and the object's storage where it is not per vertex (so vertex
-    bakes keep the digests they always had)."""
+    bakes' digests stay those of files saved before objects had a storage choice, which stay up to date)."""
     values = digests.settings_values(settings)
     options = texel_bake.options_for(ob, storage_options)
     if options.storage != "vertex":

@@ -30,7 +30,7 @@ def share_rays(sets, positions, normals, touched, origins, offset) -> list:
     """For each set of shared groups (k > 1) among `sets`, in order: its groups' caps (_caps); and every row of a
     shared group gets the group's one ray origin in `origins` (_shared_origins). The groups of every size are worked
     at once, each padded to the largest with zero normals, which count for nothing below: a chunk of the flat-shaded
-    cow holds groups of about 7 sizes, and each step's fixed cost was paid per size."""
+    cow holds groups of about 7 sizes, and working each size apart would pay each step's fixed cost per size."""
     shared = [members for members in sets if members.shape[1] > 1]
     if not shared:
         return []
@@ -129,6 +129,6 @@ def weight_dtype(size):
     rows each weigh every ray: in float32 that work moves half the bytes and its matrix products run twice as fast.
     The directions lose nothing (engines cast in float32), and a replicate's sums over its m rays round by
     √m·2^-24 of their size typically, m·2^-24 at worst (6e-5 at m = 1024), far below the Monte Carlo error they
-    carry. A group of one has no k-fold work (its weights are 1) and keeps float64, so smooth meshes bake bit for
-    bit as before."""
+    carry. A group of one has no k-fold work (its weights are 1) and keeps float64, so a smooth mesh, whose points
+    all cast alone, bakes in float64 throughout."""
     return np.float64 if size == 1 else np.float32

@@ -72,7 +72,7 @@ _S_BISECTION_STEPS = 96
 MAX_IOR = 1000.0
 # Gauss-Legendre nodes on [0, 1] for the boundary's transmittance 1 − F_dr (see _boundary_transmittance): within
 # a relative 2e-14 of the integral (checked against its closed form in 80-digit decimals) for η (or 1/η) from
-# 1 + 1e-7 to 1000, 5e-13 nearer to 1. (64 nodes without the stretch were 3e-6 off at η = 1000.)
+# 1 + 1e-7 to 1000, 5e-13 nearer to 1. (64 nodes without the stretch would be 3e-6 off at η = 1000.)
 _FRESNEL_NODES, _FRESNEL_WEIGHTS = np.polynomial.legendre.leggauss(48)
 _FRESNEL_NODES, _FRESNEL_WEIGHTS = 0.5 * (_FRESNEL_NODES + 1.0), 0.5 * _FRESNEL_WEIGHTS
 
