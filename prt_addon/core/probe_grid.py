@@ -38,31 +38,38 @@ def trilinear_weights(local_points, resolution, valid) -> tuple[np.ndarray, np.n
     sum to 1; all zero where none of them is valid. Along an axis of one probe, that probe carries the weight. The
     first index is the cell's own (its lowest corner), so points with the same first index share all 8 probes.
 
-    Axis by axis, on columns: numpy reduces an (N, 3) array along its rows with an inner loop of 3 (core.arrays),
-    which made this the largest part of shading a moving 100 k-vertex object."""
+    Column by column, corner by corner: numpy works an (N, 3) or (N, 8) array along its short rows with an inner
+    loop of 3 or 8 (core.arrays), and these weights are formed for every vertex of a moving object at every update."""
     resolution = [int(n) for n in resolution]
     points = np.asarray(local_points, dtype=np.float64)
     shape = points.shape[:-1]
     points = points.reshape(-1, 3)
     strides = (resolution[1] * resolution[2], resolution[2], 1)
     base = np.zeros(len(points), dtype=np.int64)
-    weights = np.ones((len(points), 1))
-    offsets = np.zeros(1, dtype=np.int64)
+    sides, steps = [], []
     for axis, count in enumerate(resolution):
         # The point in probe units: probe i sits at i, the lattice spans 0..n−1; clamped onto it.
         grid = np.clip((points[:, axis] + 1.0) * (count / 2.0) - 0.5, 0.0, count - 1)
-        low = np.minimum(np.floor(grid).astype(np.int64), max(count - 2, 0))
+        low = np.minimum(grid.astype(np.int64), max(count - 2, 0))  # grid ≥ 0: truncation is the floor
         fraction = grid - low
         base += low * strides[axis]
-        # Corners x slowest; an axis of one probe repeats it, with weight 0 on the repeat.
-        weights = (weights[:, :, None] * np.stack([1.0 - fraction, fraction], axis=1)[:, None, :]).reshape(
-            len(points), -1)
-        offsets = (offsets[:, None] + np.array([0, min(1, count - 1) * strides[axis]])).reshape(-1)
+        sides.append((1.0 - fraction, fraction))
+        # An axis of one probe repeats it, with weight 0 on the repeat.
+        steps.append(min(1, count - 1) * strides[axis])
+    weights = np.empty((8, len(points)))
+    offsets = np.empty(8, dtype=np.int64)
+    for corner in range(8):  # x slowest
+        x, y, z = corner >> 2, (corner >> 1) & 1, corner & 1
+        np.multiply(sides[0][x], sides[1][y], out=weights[corner])
+        weights[corner] *= sides[2][z]
+        offsets[corner] = x * steps[0] + y * steps[1] + z * steps[2]
     indices = base[:, None] + offsets
-    weights *= np.asarray(valid, dtype=bool)[indices]
-    total = sum(weights[:, corner] for corner in range(8))
-    weights /= np.where(total > 0.0, total, 1.0)[:, None]
-    return indices.reshape(shape + (8,)), weights.reshape(shape + (8,))
+    valid = np.asarray(valid, dtype=bool)
+    if not valid.all():
+        weights *= valid[indices].T
+        total = sum(weights[corner] for corner in range(8))
+        weights /= np.where(total > 0.0, total, 1.0)
+    return indices.reshape(shape + (8,)), weights.T.reshape(shape + (8,))
 
 
 def probe_lights(matrices, light) -> np.ndarray:
@@ -85,15 +92,19 @@ def shade_points(transfer, lights, indices, weights) -> np.ndarray:
     """(N, 3) float32 radiance Σ_k w_k transfer · lights[p_k] at N shading points, transfer (N, n²) (grey) or
     (N, 3, n²) (coloured: channel by channel), with their probes' indices and weights (N, 8) from trilinear_weights.
 
-    The same as shading each point with its blend(), without forming the N blended lights (8 gathers of 3·n² values
-    per point): points are grouped by their cell, whose 8 probes they share, and each group's transfer rows meet
-    those probes' lights in one matrix product, (m, n²) by (n², 8·3); then each point weighs its 8 products."""
+    The same as shading each point with its blend(), without gathering 8 probes' lights per point: points are
+    grouped by their cell, whose 8 probes they share, and each group's transfer rows meet those probes' lights in
+    one matrix product, (m, n²) by (n², 8·3); each point then weighs its 8 products (one (1, 8) by (8, 3) product).
+    The cells sort as 16-bit keys where they fit, which numpy sorts by radix, 8× faster than 64-bit ones."""
     count, size = len(transfer), lights.shape[-1]
-    order = np.argsort(indices[:, 0], kind="stable")
-    cells = indices[order, 0]
+    cells = indices[:, 0]
+    key = cells.astype(np.int16) if count and int(cells.max()) < np.iinfo(np.int16).max else cells
+    order = np.argsort(key, kind="stable")
+    cells = cells[order]
     starts = np.flatnonzero(np.r_[True, cells[1:] != cells[:-1]]) if count else np.zeros(0, dtype=np.int64)
     ends = np.r_[starts[1:], count].astype(np.int64)
-    rows = np.asarray(transfer, dtype=np.float32)[order]
+    # np.take rather than indexing: 2-3× faster on rows this short.
+    rows = np.take(np.asarray(transfer, dtype=np.float32), order, axis=0)
     lights = np.asarray(lights, dtype=np.float32)
     products = np.empty((count, 8, 3), dtype=np.float32)
     for start, end in zip(starts, ends):
@@ -104,5 +115,6 @@ def shade_points(transfer, lights, indices, weights) -> np.ndarray:
             for channel in range(3):
                 products[start:end, :, channel] = one_thread_product(rows[start:end, channel], around[:, channel].T)
     radiance = np.empty((count, 3), dtype=np.float32)
-    radiance[order] = np.einsum("nk,nkc->nc", weights[order].astype(np.float32), products)
+    weights = np.take(np.asarray(weights, dtype=np.float32, order="C"), order, axis=0)
+    radiance[order] = np.matmul(weights[:, None, :], products)[:, 0]
     return radiance
