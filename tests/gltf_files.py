@@ -1,17 +1,22 @@
-"""Reading a GLB in the tests as a viewer reads it: its document and binary chunk, an accessor's values, the SH
-lights of its scene's extras; and Khronos' glTF validator's verdict on it."""
+"""Reading a GLB in the tests as a viewer reads it: its document and binary chunk (its extras checked against the
+manual's JSON Schema), an accessor's values, the SH lights of its scene's extras; and Khronos' glTF validator's
+verdict on it."""
 
 import json
 import subprocess
 
+import jsonschema
 import numpy as np
 
-from conftest import run_cli
+from conftest import ROOT, run_cli
 
 from prt_addon.commands.view import VIEWER
 from prt_addon.core import glb, lobes, rotation
 
 VALIDATE = VIEWER.parent / "tests" / "js" / "validate_glb.mjs"
+# What the manual says the export writes (docs/gen_reference.py builds it from the export's constants).
+EXTRAS_SCHEMA = jsonschema.Draft202012Validator(
+    json.loads((ROOT / "docs" / "reference" / "gltf-extras.schema.json").read_text(encoding="utf-8")))
 
 
 def baked_and_saved(settings, path, then=lambda: None):
@@ -37,8 +42,22 @@ def exported(blend, *said):
 
 
 def read_glb(path):
+    """(document, binary chunk) of an exported GLB, once its extras are found to be what the manual describes."""
     with open(path, "rb") as file:
-        return glb.read(file.read())
+        document, binary = glb.read(file.read())
+    assert_extras_as_described(document)
+    return document, binary
+
+
+def extras_problems(document) -> list[str]:
+    """Where the document's PRT extras differ from docs/reference/gltf-extras.schema.json, one line each."""
+    return [f"{error.json_path}: {error.message[:300]}" for error in EXTRAS_SCHEMA.iter_errors(document)]
+
+
+def assert_extras_as_described(document):
+    problems = extras_problems(document)
+    assert not problems, "the export wrote extras the manual does not describe (docs/gen/gltf_schema.py):\n" + \
+        "\n".join(problems)
 
 
 def accessor(document, binary, index) -> np.ndarray:

@@ -2,6 +2,7 @@
 tested in Debian's headless chromium: its picture against Blender's render of the same light, its keys, its modes.
 Without chromium, npm's three.js or node these tests fail; setup.sh installs them."""
 
+import copy
 import json
 import math
 import os
@@ -16,7 +17,8 @@ import pytest
 
 from browser import chromium, open_viewer, viewer_state
 from conftest import ROOT, add_light, run_cli
-from gltf_files import accessor, baked_and_saved, exported, light_from_extras, read_glb, validator_issues
+from gltf_files import (accessor, baked_and_saved, exported, extras_problems, light_from_extras, read_glb,
+                        validator_issues)
 from pictures import read_png, rms_over_objects, shot
 from core.rotations import matrix_from_euler_zyz
 from prt_addon.blender import lights, sample_scenes
@@ -124,6 +126,26 @@ def test_exported_transfer_and_lights_shade_to_color_0(demo_glb):
         transfer = np.hstack([attributes[a] for a in layout["attributes"]])[:, :16]
         shaded = shading.shade(transfer, light_from_extras(extras, 4))
         assert np.allclose(np.clip(shaded, 0.0, 1.0), attributes["COLOR_0"][:, :3], atol=2e-5), name
+
+
+def test_the_schema_the_files_are_checked_against_refuses_what_the_manual_does_not_describe(demo_glb):
+    """Every GLB the tests read is checked against docs/reference/gltf-extras.schema.json (gltf_files.read_glb), the
+    demo's here; the schema is closed, so a field the manual does not name, a missing one, a value beyond its range
+    or a layout it does not describe is refused: the export cannot write what the manual does not say."""
+    document, _ = read_glb(demo_glb)
+    changes = {
+        "a field the manual does not name": lambda scene, mesh: scene.update(sharpness=1.0),
+        "no lights": lambda scene, mesh: scene.pop("lights"),
+        "an order beyond 16": lambda scene, mesh: scene.update(order=17),
+        "window strengths without the tapered window": lambda scene, mesh: scene.update(window="hanning"),
+        "a sun without its direction": lambda scene, mesh: scene["lights"][0].pop("direction"),
+        "a mesh layout the manual does not describe": lambda scene, mesh: mesh.update(layout="rows"),
+        "an attribute no profile names": lambda scene, mesh: mesh["attributes"].append("_PRT_EXTRA"),
+    }
+    for what, change in changes.items():
+        changed = copy.deepcopy(document)
+        change(changed["scenes"][0]["extras"]["prt"], changed["meshes"][0]["extras"]["prt"])
+        assert extras_problems(changed), what
 
 
 def test_exported_transfer_is_the_stored_transfer_rotated_into_gltfs_frame(demo_file, demo_glb, prt):

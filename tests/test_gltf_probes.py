@@ -7,6 +7,7 @@ viewer reports, in Debian's headless chromium. The viewer's probe light is also 
 core.rotation with fixed numbers through node.
 """
 
+import copy
 import json
 import math
 import subprocess
@@ -18,7 +19,8 @@ from mathutils import Matrix
 
 from browser import chromium, open_viewer, viewer_state
 from conftest import ROOT, add_light
-from gltf_files import accessor, baked_and_saved, exported, light_from_extras, read_glb, validator_issues
+from gltf_files import (accessor, baked_and_saved, exported, extras_problems, light_from_extras, read_glb,
+                        validator_issues)
 from pictures import inner_pixels, read_png, rms_over_objects, shot
 from prt_addon.blender import probe_volumes
 from prt_addon.blender.relighting import Relighter, bounds_centre
@@ -128,6 +130,10 @@ def test_the_file_carries_the_probes_and_flags_the_dynamic_object(probe_file, pr
                                TO_GLTF @ np.reshape(meta["placement"], (4, 4)), atol=1e-12)
     flags = {mesh["name"]: mesh["extras"]["prt"].get("dynamic", False) for mesh in document["meshes"]}
     assert flags == {"Grid": False, "Cube": False, "Suzanne": True}
+    # read_glb found the extras as the manual describes them; a volume of another layout it would refuse
+    changed = copy.deepcopy(document)
+    changed["scenes"][0]["extras"]["prt"]["probe_volumes"][0]["layout"] = gltf_probes.LAYOUT + 1
+    assert extras_problems(changed)
 
 
 def test_the_file_alone_gives_the_dynamic_objects_colours_as_blenders_display(probe_file, probe_glb):

@@ -9,10 +9,11 @@ import numpy as np
 import pytest
 
 from conftest import run_cli
+from gltf_files import read_glb
 from node_setups import principled_material
 from prt_addon.blender import storage, texel_maps
 from prt_addon.blender.scene_bake import SceneBake
-from prt_addon.core import bake, glb, gltf_pack, lobes, rotation
+from prt_addon.core import bake, gltf_pack, lobes, rotation
 from prt_addon.core.errors import InputError
 
 ORDER = 4
@@ -156,8 +157,7 @@ def test_gltf_export_carries_the_maps_in_gltfs_frame_through_the_lightmap_uv_set
     assert out.returncode == 0, out.stderr
     assert meta["uv_map"] == "UVMap"
     assert "Floor: order 4 in 4 RGBA32F texel maps of 32 × 32 (TEXCOORD_0)" in out.stdout
-    with open(tmp_path / "texels.glb", "rb") as file:
-        document, binary = glb.read(file.read())
+    document, binary = read_glb(tmp_path / "texels.glb")  # its extras as the manual describes them
     mesh = next(m for m in document["meshes"] if m["name"] == "Floor")
     extras = mesh["extras"]["prt"]
     assert (extras["layout"], extras["texcoord"], extras["vec4s"]) == ("texel_maps", "TEXCOORD_0", 4)
