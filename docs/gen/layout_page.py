@@ -99,6 +99,8 @@ def text() -> str:
 
 
 def _attributes(found, cases) -> str:
+    """A row per attribute, or per set of coefficient attributes, in the order of ATTRIBUTES (Blender's order of
+    a mesh's attributes varies by version)."""
     by_name = {}
     for case in cases:
         for name, (kind, domain) in found.attributes[case].items():
@@ -114,7 +116,7 @@ def _attributes(found, cases) -> str:
     per_point = [case for case in cases if found.attributes[case]]
     rows = [(code(entry["name"]), " or ".join(sorted(entry["kinds"])), " or ".join(sorted(entry["domains"])),
              _cases(entry["cases"], per_point, "every bake per point"), ATTRIBUTES[key])
-            for key, entry in by_name.items()]
+            for key, entry in sorted(by_name.items(), key=lambda item: list(ATTRIBUTES).index(item[0]))]
     rows.append((code(storage.VALIDATION_ERROR_ATTRIBUTE), "FLOAT", "the bake's", "a validation (optional)",
                  "the last validation's error of each vertex (corner) against Cycles, relative to the object's "
                  "Cycles RMS, written by **Validate with Cycles**; removed with the bake it judged"))
@@ -122,8 +124,8 @@ def _attributes(found, cases) -> str:
 
 
 def _keys(metadata: dict, meanings: dict, cases: list) -> str:
-    keys = list(dict.fromkeys(key for case in cases for key in metadata[case]))
-    _same_names(set(keys), set(meanings), "metadata keys")
+    keys = list(meanings)  # in the order of the meanings: Blender's own order of a group's keys varies by version
+    _same_names({key for case in cases for key in metadata[case]}, set(keys), "metadata keys")
     rows = []
     for key in keys:
         having = [case for case in cases if key in metadata[case]]
@@ -153,7 +155,7 @@ def _probe_volume(found) -> str:
          "the distant light's SH to the SH of the light arriving at the probe"),
         (code(probe_volumes.VALID_KEY), "integer array", "P flags: 0 for a probe inside geometry, left out"),
         (code(probe_volumes.METADATA_KEY), "group", "the keys below")])
-    keys = table(["Key", "Value", "Meaning"], [(code(key), _kind(value), PROBES[key]) for key, value in meta.items()])
+    keys = table(["Key", "Value", "Meaning"], [(code(key), _kind(meta[key]), meaning) for key, meaning in PROBES.items()])
     return properties + f"\n`{probe_volumes.METADATA_KEY}` holds:\n\n" + keys
 
 
