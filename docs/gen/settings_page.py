@@ -6,6 +6,7 @@ import math
 
 from prt_addon.blender import schema
 from prt_addon.core import presets, settings as spec
+from prt_addon.core.errors import InputError
 
 from . import cli, panels
 from .markdown import code, page, table, value
@@ -24,7 +25,7 @@ The settings PRT saves with a `.blend` file: the scene's bake settings, each obj
 display and the validation. Each bake setting is defined once (`prt_addon/core/settings.py`): the sidebar's
 properties, the options of `prt bake` and their range checks all read that definition, so the panel, the command
 line and this page agree. A value out of range is refused as it is typed or read, with its range
-(`prt bake --target-error 5`: `target error must be 0-1, not 5`).
+(`prt bake --target-error 5`: `{refusal}`).
 
 In Python the settings are properties of the scene and of each object: `bpy.context.scene.prt_bake.order = 6`,
 `bpy.data.objects["Floor"].prt_storage = "texel"`. A setting of `prt bake` applies to every object the bake
@@ -34,8 +35,12 @@ receives; without the option each object keeps its own.
 
 def text() -> str:
     parsers = cli.commands()
+    try:
+        parsers["bake"].parse_args(["--target-error", "5"])
+    except InputError as refused:  # what the command line says, after its "prt bake: argument --target-error: "
+        refusal = str(refused).rsplit(": ", 1)[-1]
     drawn = panels.drawn()
-    parts = [INTRO,
+    parts = [INTRO.format(refusal=refusal),
              "## Bake\n\nThe scene's bake settings, in the order the Bake panel shows them.\n",
              _group(schema.PRT_PG_bake_settings.__annotations__, "prt_bake", "scene.prt_bake.", drawn,
                     parsers["bake"], "prt bake"),
