@@ -1,12 +1,15 @@
 """Markdown pieces the reference pages share: a page's notice, tables, inline code and values as a user types them."""
 
+import re
+
 NOTICE = ("<!-- Written by docs/gen_reference.py from the add-on's code: change the code or the generator, then run "
           "`.venv/bin/python docs/gen_reference.py`; tests/test_docs.py fails while this page is stale. -->\n")
 
 
 def cell(text) -> str:
-    """One table cell: on one line, its pipes escaped."""
-    return " ".join(str(text).split()).replace("|", "\\|")
+    """One table cell: on one line, its pipes escaped but in code, where the table reads none as a border."""
+    parts = re.split(r"(`+[^`]*`+)", " ".join(str(text).split()))
+    return "".join(part if part.startswith("`") else part.replace("|", "\\|") for part in parts)
 
 
 def table(headers, rows) -> str:
