@@ -41,7 +41,7 @@ def text() -> str:
         refusal = str(refused).rsplit(": ", 1)[-1]
     drawn = panels.drawn()
     parts = [INTRO.format(refusal=refusal),
-             "## Bake\n\nThe scene's bake settings, in the order the Bake panel shows them.\n",
+             "## Bake\n\nThe scene's bake settings (`scene.prt_bake`).\n",
              _group(schema.PRT_PG_bake_settings.__annotations__, "prt_bake", "scene.prt_bake.", drawn,
                     parsers["bake"], "prt bake"),
              _presets(),
