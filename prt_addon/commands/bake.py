@@ -29,7 +29,7 @@ def add_parser(commands):
     parser.add_argument("file", nargs="?", help=".blend file to open (in Blender: defaults to the open file)")
     add_object_options(parser, "the file's selected meshes, else every visible mesh")
     parser.add_argument("--preset", type=str.lower, choices=list(presets.PRESETS),
-                        help="start from a preset's settings (see the README's table); options given override it")
+                        help="start from a preset's settings (the manual's settings reference lists them); options given override it")
     for setting in spec.BAKE + (spec.WORKERS,) + spec.TEXEL:
         add_setting(parser, setting)
     parser.add_argument("--uv-map", help="texel storage: the UV map the texels follow (default: PRT's own)")
@@ -44,7 +44,7 @@ def add_parser(commands):
                         help="rebake only the receivers whose geometry, transform, occluders, materials or settings "
                              "changed since their bake (or that have none); nothing is written when none did")
     light_options.add_arguments(parser)
-    farm = parser.add_argument_group("farm", "one bake spread over a render farm (README: Baking on a farm)")
+    farm = parser.add_argument_group("farm", "one bake spread over a render farm (the manual's Farms page)")
     farm.add_argument("--shard", metavar="K/N", help="bake only shard K of N (K from 1 to N) into the part file "
                       "--out, saving nothing else; `prt merge` makes the bake from all N parts")
     farm.add_argument("--out", metavar="PART.npz", help="the shard's part file (written atomically)")

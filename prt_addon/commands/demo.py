@@ -34,8 +34,8 @@ BLEND, RENDERS, REPORT = "demo_baked.blend", ("demo.png", "demo_moved.png"), "de
 def add_parser(commands):
     parser = commands.add_parser("demo", help="build the sample scene, bake, relight, render a PNG and a report")
     parser.add_argument("--output", default="demo_output", help="folder for the PNG, report and .blend")
-    parser.add_argument("--workers", type=int, default=2)
-    parser.add_argument("--samples", type=int, default=256)
+    parser.add_argument("--workers", type=int, default=2, help="bake worker processes")
+    parser.add_argument("--samples", type=int, default=256, help="rays per vertex of the demo's bake")
 
 
 def run(args, in_blender: bool) -> int:
