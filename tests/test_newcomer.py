@@ -4,8 +4,9 @@ install and quick start pages print runs as printed, from the copy's root, and w
 The copy holds what a clone of this working tree would: the files git tracks or would track, none it ignores
 (no demo_output/, no build/, no sample scenes built by an earlier setup). Two commands are left out: `bash setup.sh`,
 which CI runs before the suite (the copy gets its products: this venv as .venv, the wheels it fetched into wheels/
-and the three.js it installed into viewer/node_modules/), and the suite's own command (`python -m pytest tests`), which is running this test. PYTHONPATH points the
-venv's `prt` command at the copy's package rather than the checkout its editable install names."""
+and the three.js it installed into viewer/node_modules/), and the suite's own command (`python -m pytest tests`),
+which is running this test. PYTHONPATH points the venv's `prt` command at the copy's package rather than the
+checkout its editable install names."""
 
 import json
 import os
