@@ -9,6 +9,7 @@ import functools
 import hashlib
 import json
 import os
+import re
 import resource
 import shlex
 import shutil
@@ -475,35 +476,39 @@ def test_openjd_template_runs_bake_over_1_to_n_then_merge_bit_identical_to_one_b
     assert_same_bake(out, reference("shadowed")[0])
 
 
-# -- the README's commands -----------------------------------------------------------------------------------------
+# -- the manual's commands ---------------------------------------------------------------------------------------------
 
-def readme_block(heading: str) -> str:
-    """The first sh block under a heading of README.md, as printed."""
-    section = (ROOT / "README.md").read_text().split(f"\n{heading}\n", 1)[1]
-    return section.split("```sh\n", 1)[1].split("\n```", 1)[0]
+def farms_block(marker: str) -> str:
+    """The sh block of the manual's Farms page (docs/farms.md) that holds `marker`, as printed."""
+    blocks = re.findall(r"^```sh\n(.*?)^```", (ROOT / "docs" / "farms.md").read_text(), re.MULTILINE | re.DOTALL)
+    found = [block for block in blocks if marker in block]
+    assert found, f"docs/farms.md has no sh block with {marker!r}"
+    return found[0]
 
 
 @pytest.fixture(scope="module")
 def default_bake(scenes, tmp_path_factory):
-    """The room baked by one process at the default settings, which the README's farm commands keep."""
+    """The room baked by one process at the default settings, which the manual's farm commands keep."""
     out = tmp_path_factory.mktemp("farm_default") / "one.blend"
     ok(run_cli("bake", scenes["room"], "--output", out))
     return out
 
 
-@pytest.mark.parametrize("heading", ["### Open Job Description (AWS Deadline Cloud)", "### Dask"])
-def test_the_readmes_farm_commands_run_as_printed_with_only_the_bpy_module(scenes, default_bake, tmp_path, heading):
-    """In a folder laid out as the README's commands expect (scene.blend, the checkout's farm/, the venv as .venv),
-    bash runs the block as printed, and the bake it saves is one process's bit for bit. PYTHONPATH points the venv's
-    command at this checkout."""
+@pytest.mark.parametrize("marker", ["openjd run", "--dask local:"])
+def test_the_manuals_farm_commands_run_as_printed_with_only_the_bpy_module(scenes, default_bake, tmp_path, marker):
+    """In a folder laid out as the Farms page's commands expect (the checkout's farm/, the venv as .venv, the room at
+    the .blend path the block bakes), bash runs the block as printed, and the bake it saves (the block's other
+    .blend path) is one process's bit for bit. PYTHONPATH points the venv's command at this checkout."""
+    block = farms_block(marker)
+    scene, saved = re.findall(r"(?:\$PWD/)?((?:[\w.-]+/)*[\w.-]+\.blend)", block)
     (tmp_path / "farm").symlink_to(ROOT / "farm")
     (tmp_path / ".venv").symlink_to(Path(sys.prefix))
-    shutil.copy(scenes["room"], tmp_path / "scene.blend")
-    block = readme_block(heading)
+    (tmp_path / scene).parent.mkdir(parents=True, exist_ok=True)
+    shutil.copy(scenes["room"], tmp_path / scene)
     done = ok(subprocess.run(["bash", "-e", "-c", block], cwd=tmp_path, env=dict(os.environ, PYTHONPATH=str(ROOT)),
                              capture_output=True, text=True, timeout=600))
-    print(f"{heading}: ran {block!r}; its last line: {done.stdout.strip().splitlines()[-1]!r}")
-    assert_same_bake(tmp_path / "baked.blend", default_bake)
+    print(f"{marker}: ran {block!r}; its last line: {done.stdout.strip().splitlines()[-1]!r}")
+    assert_same_bake(tmp_path / saved, default_bake)
 
 
 # -- Dask ----------------------------------------------------------------------------------------------------------
