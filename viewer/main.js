@@ -66,7 +66,7 @@ async function makePrt(mesh, parser) {
   const layout = mesh.userData.prt || (mesh.parent && mesh.parent.userData.prt) || findLayout(mesh, parser);
   if (!layout) return;
   let transfer = null;
-  if (layout.layout === "texel_maps") return;  // shaded per texel in Blender: its COLOR_0 shows it (README)
+  if (layout.layout === "texel_maps") return;  // shaded per texel in Blender: its COLOR_0 shows it (docs/export.md)
   if (layout.layout === "texture") {
     const buffer = await parser.getDependency("bufferView", layout.texture.bufferView);
     transfer = new THREE.DataTexture(new Float32Array(buffer), layout.texture.width, layout.texture.height,

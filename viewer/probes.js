@@ -1,4 +1,4 @@
-// The probe volumes of a PRT export (the scene's extras.prt.probe_volumes, README "Probe volumes in glTF") and the
+// The probe volumes of a PRT export (the scene's extras.prt.probe_volumes, docs/reference/gltf-extras.md) and the
 // light they give a dynamic object, as the add-on's display computes it: the trilinear blend of the valid probes
 // around the object's centre (core/probe_grid.py, ported line for line), Σ w_p T_p L, then turned into the object's
 // frame (blender/relighting.py light_in_frame). Plain arrays, no three.js, so node runs it in the tests.

@@ -7,7 +7,7 @@
 // (`prt bake FILE --shard K/N ...`).
 //
 // Install: copy this file into the `scripts` folder next to the flamenco-manager executable and restart the
-// Manager. Every Worker's Blender needs the PRT extension enabled. See the README, "Baking on a farm".
+// Manager. Every Worker's Blender needs the PRT extension enabled. See the manual, docs/farms.md.
 
 const JOB_TYPE = {
     label: "PRT Bake",

@@ -1,8 +1,8 @@
 """The checks of a messy model's faults, before any ray (core.mesh_faults, core.corners): for each receiver, its face
 corners whose custom normal points against their face, its zero-area and sliver faces, and its parts whose surfaces
 cross another part (of itself or of another visible mesh) or lie inside a closed one. Each is a warning naming the
-count, since the bake decides there by rule (README, "Messy models: what Cycles decides"), with the faces at fault
-for the checklist's Select button (`fault_faces`, which PRT_OT_select_faults selects). They read the meshes as the
+count, since the bake decides there by rule (docs/cycles_conventions.md, docs/design/contact.md), with the faces at
+fault for the checklist's Select button (`fault_faces`, which PRT_OT_select_faults selects). They read the meshes as the
 user edits them (not their modifiers' result), so the faces found are the ones Edit Mode shows."""
 
 from dataclasses import dataclass

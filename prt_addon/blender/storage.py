@@ -1,6 +1,7 @@
 """The stored layout: a bake's transfer attributes and metadata on a mesh, written, read back and removed.
 
-Stored layout (documented in the README; bump core.bake.CONVENTION_VERSION when it changes):
+Stored layout (docs/reference/stored-layout.md is generated from what this writes; bump core.bake.CONVENTION_VERSION
+when it changes):
 - FLOAT_VECTOR attributes `_prt_t00`, `_prt_t01`, ... each holding 3 consecutive SH coefficients (k = 3j, 3j+1,
   3j+2; the last one zero-padded). The leading `_` lets glTF export them. Coloured (interreflected) transfer has
   one such set per channel: `_prt_r00`..., `_prt_g00`..., `_prt_b00`....

@@ -2,7 +2,7 @@
 read back and removed; and the lightmap UV map itself (the artist's, or one made for PRT by Blender's Lightmap
 Pack).
 
-Stored layout (README, *Stored layout*; the mesh's `prt` metadata has `storage` "TEXEL"):
+Stored layout (docs/reference/stored-layout.md; the mesh's `prt` metadata has `storage` "TEXEL"):
 - float RGBA images `_prt_<mesh>_t00`, `_prt_<mesh>_t01`, ...: image j holds coefficients k = 4j..4j+3 in R, G, B, A
   (k = l(l+1)+m; the last one zero-padded), Non-Color, packed into the .blend as lossless 32-bit OpenEXR;
 - a float RGBA image `_prt_<mesh>_error`: the estimated relative error in R, G and B, alpha 1;

@@ -6,7 +6,7 @@ vertex whose corners share one normal is one point; a vertex whose corners have 
 each seen from its own faces. Points 0..V-1 are the vertices themselves (with the normal of their first corner),
 points V.. the further normals of split vertices, so a mesh without splits has exactly its vertices as points.
 
-Cycles clips each corner by its own face's plane (README, "Messy models: what Cycles decides"). Around a closed
+Cycles clips each corner by its own face's plane (docs/cycles_conventions.md). Around a closed
 surface the faces meeting at a vertex do that for one point; at a vertex of an edge with three or more faces (a fin on
 a tube) the corners sharing one averaged normal lie on faces that block each other's sky: there each face plane's
 corners are a point of their own, with that plane as its `clip`.

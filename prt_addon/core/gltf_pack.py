@@ -38,7 +38,7 @@ class Profile:
     attribute_name: str  # format of the i-th VEC4 attribute's name
     max_attributes: int | None  # VEC4 attributes the profile allows for transfer; None: no limit
     texture_beyond: bool  # beyond the budget: a data texture (True) or a refusal (False)
-    limit: str  # what the budget is, for the refusal and the README
+    limit: str  # what the budget is, for the refusal and the manual
 
 
 PROFILES = {

@@ -1,5 +1,5 @@
 """Probe volumes for glTF: each volume's transfer matrices turned into glTF's Y-up frame, as one float32 buffer view,
-with its placement, resolution and valid probes in the scene's extras (README, *Taking the bake out of Blender*).
+with its placement, resolution and valid probes in the scene's extras (docs/reference/gltf-extras.md).
 
 A probe's matrix T maps the distant light's SH to the SH of the light arriving at the probe, both functions of
 world directions; in glTF's frame, where both are rotated by the same SH rotation R (core.gltf_pack), it is R T Rᵀ.

@@ -2,7 +2,7 @@
 chunk's result (core.bake.ChunkResult), farm part and receiver result, counted per object in the report and shown
 as the "Decided by rule" heatmap, so an artist sees where to look when a bake disagrees with Cycles.
 
-The rules (README, "Messy models: what Cycles decides"):
+The rules (docs/design/contact.md, docs/cycles_conventions.md):
 - LYING: in contact, lying on a surface it faces (core.contact): black, every direction enters that surface;
 - TOUCHING: in contact with a surface at an angle (core.contact): rays measure it, but start in front of both
   surfaces, where the rule puts them;
