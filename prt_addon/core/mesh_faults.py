@@ -2,16 +2,16 @@
 by arithmetic alone before any ray: slivers and zero-area faces, parts whose surfaces cross, and parts inside
 other closed parts. Each finder returns the triangles at fault, so the interface can select their faces.
 
-Crossing surfaces: every pair of triangles of different parts (a part: triangles connected through shared
-vertices; each object's parts are parts of their own) whose bounding boxes overlap and share a cell of a uniform
-grid (its cells the median triangle's size) is tested exactly, in batches: an edge of one crossing the other's
-interior strictly (its ends on opposite sides of the plane, the crossing inside all three edges), so surfaces that
-only touch (a box standing on another, a face on a face) do not cross. Inside: a part whose bounding box lies in
-another's is inside it when its sampled vertices' generalised winding numbers with respect to the other (the solid angle its triangles subtend, over 4π) are none
-below 1/4 and some above 3/4: a point on the surface has 1/2 or less, so parts that touch from inside are inside,
-parts that touch from outside are not. A bake's points inside another part (points_inside) are judged alike, one by
-one: Cycles' rays meet that part whichever way they leave, and so do the bake's, which find them black.
-"""
+Crossing surfaces: every pair of triangles of different parts (a part: triangles connected through shared vertices;
+each object's parts are parts of their own) whose bounding boxes overlap and share a cell of a uniform grid (its
+cells the median triangle's size) is tested exactly, in batches: an edge of one crossing the other's interior
+strictly (its ends on opposite sides of the plane, the crossing inside all three edges), so surfaces that only touch
+(a box standing on another, a face on a face) do not cross. Inside: a part whose bounding box lies in another's is
+inside it when its sampled vertices' generalised winding numbers with respect to the other (the solid angle its
+triangles subtend, over 4π) are none below 1/4 and some above 3/4: a point on the surface has 1/2 or less, so parts
+that touch from inside are inside, parts that touch from outside are not. A bake's points inside another part
+(points_inside) are judged alike, one by one: Cycles' rays meet that part whichever way they leave, and so do the
+bake's, which find them black."""
 
 import numpy as np
 
