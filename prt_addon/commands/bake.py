@@ -34,7 +34,8 @@ def add_parser(commands):
         add_setting(parser, setting)
     parser.add_argument("--uv-map", help="texel storage: the UV map the texels follow (default: PRT's own)")
     parser.add_argument("--no-new-uv-map", action="store_true",
-                        help="texel storage: never add PRT's own lightmap UV map; a mesh without --uv-map is not baked")
+                        help="texel storage: never add PRT's own lightmap UV map; a mesh with no usable UV map "
+                             "of its own is then not baked")
     parser.add_argument("--dynamic", action=argparse.BooleanOptionalAction, default=None,
                         help="set every receiver's Dynamic (saved with the file): baked in its own frame against "
                              "itself only, so it may move and turn; --no-dynamic: static (default: each object's own)")
