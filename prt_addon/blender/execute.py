@@ -17,7 +17,8 @@ import sys
 import bpy
 import numpy as np
 
-from ..core import error_curve, executors, interpolation, job, lobes, probe_transfer, rules, texel_gather, texel_refine
+from ..core import (bake, error_curve, executors, interpolation, job, lobes, probe_transfer, rules, scheduling,
+                    texel_gather, texel_refine)
 from ..core.errors import InputError
 from ..core.progress import JobSequence, WrappingJob
 from . import texel_plan
@@ -173,9 +174,14 @@ class Execution(WrappingJob):
             transfer = np.concatenate([result.transfer for result in solve.results()]).astype(np.float64)
             transfer = transfer[:, None, :] if transfer.ndim == 2 else transfer
             exitant = np.concatenate(solve.albedo)[:, :, None] * transfer
-        positions = np.concatenate([volume.positions for volume in self.plan.request.probe_volumes])
+        volumes = self.plan.request.probe_volumes
+        positions = np.concatenate([volume.positions for volume in volumes])
+        # Each volume's probes keyed by its name, as a receiver's vertices are: a volume rebaked alone (stale-only)
+        # casts the rays a bake of everything would.
+        keys = np.concatenate([scheduling.stream_keys(bake.Receiver.key_for(volume.name),
+                                                      np.arange(np.prod(volume.resolution))) for volume in volumes])
         self.probes = probe_transfer.ProbeJob(self.plan.occluders.ray_caster(), positions, settings.order,
-                                              settings.samples, settings.replicates, settings.seed, exitant)
+                                              settings.samples, settings.replicates, settings.seed, exitant, keys)
         return self.probes
 
     def outcome(self) -> BakeResults:
@@ -232,6 +238,9 @@ class Execution(WrappingJob):
         summary.phases_s["probes_s"] = self.between.progress.elapsed + self.auto_s
         if self.probes:
             summary.phases_s["probe_volumes_s"] = self.probes.progress.elapsed
+            summary.probe_volumes = len(self.plan.request.probe_volumes)
+            summary.probes = len(self.probes.positions)
+            summary.probe_rays = summary.probes * self.probes.rays
         # A merge's time is the shards' seconds summed plus its own, as its job's summary counts it.
         summary.time_s = self.sequence.progress.elapsed + self.main.first.phase_times.get("shards_s", 0.0)
 

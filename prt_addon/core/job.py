@@ -71,6 +71,9 @@ class Summary:
     est_rule_rms_rel_error: float = 0.0  # the rules' part of est_rms_rel_error (core.rules.estimate)
     inside_another_part: int = 0  # points the rays found black inside another part (TransferJob.inside_another_part)
     dynamic: int = 0  # objects baked dynamic: each in its own frame, against itself only
+    probe_volumes: int = 0  # probe volumes baked with the static scene (core.probe_transfer)
+    probes: int = 0         # their probes
+    probe_rays: int = 0     # the probes' rays, which `rays` leaves out
 
     def line(self) -> str:
         bounced = (f", {self.bounces} bounces in {self.phases_s.get('bounces_s', 0.0):.2f} s "
@@ -90,11 +93,13 @@ class Summary:
             ruled += f"; {self.inside_another_part} points inside another part (black)"
         dynamic = (f"; {self.dynamic} dynamic object{'s' if self.dynamic > 1 else ''}, each baked in its own frame "
                    f"against itself only" if self.dynamic else "")
+        probes = (f"; {self.probes} probes in {self.probe_volumes} probe volume{'s' if self.probe_volumes > 1 else ''}"
+                  f", {self.probe_rays} rays" if self.probe_volumes else "")
         return (f"PRT bake: {self.objects} objects, {self.vertices} vertices{split}, order {self.order} {self.mode}: "
                 f"{self.time_s:.2f} s, {self.rays} rays, {self.rays_per_s / 1e3:.0f} k rays/s{engine}, "
                 f"{self.skipped_vertices} vertices exact without rays, "
                 f"est. RMS rel. error {self.est_rms_rel_error:.4f}{doubt}, max {self.est_max_rel_error:.4f}{between}"
-                f"{bounced}{ruled}{dynamic}")
+                f"{bounced}{ruled}{dynamic}{probes}")
 
     def curve_line(self) -> str:
         """The bake's error against its run time in one line (core.error_curve), logged after line()."""

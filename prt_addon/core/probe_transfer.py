@@ -60,12 +60,14 @@ class ProbeJob(Job):
     """The transfer at each of `positions` (P, 3) in world space, through `caster` (core.ray_caster.RayCaster) with
     `samples` rays per probe (rounded down to a multiple of `replicates`), PROBES_AT_ONCE probes a step. `exitant`
     (S, C, n²): the exitant transfer of the caster's first S vertices (the bake's solved ones), or None for the
-    direct part alone. Its outcome is a ProbeTransfer."""
+    direct part alone. `keys` (P,): each probe's random stream (core.scheduling.stream_keys), by default its index.
+    Its outcome is a ProbeTransfer."""
 
     def __init__(self, caster, positions, order: int, samples: int, replicates: int = 4, seed: int = 0,
-                 exitant=None):
+                 exitant=None, keys=None):
         self.caster, self.order, self.replicates, self.seed, self.exitant = caster, order, replicates, seed, exitant
         self.positions = np.asarray(positions, dtype=np.float64).reshape(-1, 3)
+        self.keys = np.arange(len(self.positions)) if keys is None else np.asarray(keys, dtype=np.int64)
         self.per_replicate = max(1, samples // replicates)
         self.rays = self.per_replicate * replicates
         channels = 1 if exitant is None else exitant.shape[1]
@@ -81,7 +83,7 @@ class ProbeJob(Job):
         while self.done < len(self.positions) and time.perf_counter() < deadline:
             rows = slice(self.done, self.done + PROBES_AT_ONCE)
             self.matrices[rows], self.std_error[rows], self.back_share[rows] = _chunk(
-                self.caster, self.normals, self.positions[rows], np.arange(len(self.positions))[rows], self.order,
+                self.caster, self.normals, self.positions[rows], self.keys[rows], self.order,
                 self.per_replicate, self.replicates, self.seed, self.exitant)
             self.done = min(len(self.positions), self.done + PROBES_AT_ONCE)
         self.progress.fraction = self.done / max(1, len(self.positions))

@@ -26,7 +26,13 @@ SHARED_CHUNK_FACTOR = 2
 
 def vertex_keys(receiver: Receiver, rows: np.ndarray) -> np.ndarray:
     """Per-row random stream ids: 20 bits of the object's key above 30 bits of row index."""
-    return (np.int64(receiver.key & 0xFFFFF) << np.int64(30)) + np.asarray(rows, dtype=np.int64)
+    return stream_keys(receiver.key, rows)
+
+
+def stream_keys(key: int, rows) -> np.ndarray:
+    """Random stream ids of rows of something keyed `key` (core.bake.Receiver.key_for): 20 bits of the key above 30
+    bits of row index, so they do not depend on what else is baked."""
+    return (np.int64(key & 0xFFFFF) << np.int64(30)) + np.asarray(rows, dtype=np.int64)
 
 
 def chunk_rows(receivers) -> list[tuple[int, np.ndarray]]:
