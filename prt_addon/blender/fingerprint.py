@@ -12,6 +12,12 @@ parts, so a check can say what changed and Bake Stale rebakes only the objects w
 - materials: what the object's own materials give the bake: subsurface settings (shadowed and interreflected) and
   albedo per face corner (interreflected).
 - settings: the bake settings the mode reads and the stored layout's version (core.fingerprint.settings_values).
+
+A probe volume's fingerprint (volume_fingerprints) has its own parts (core.fingerprint.PROBE_CHANGES): transform
+(its placement: the cube's matrix, display size included), resolution, occluders (every visible mesh instance but
+the dynamic ones, as one set, taken as a receiver's occluders are: its probes see them all) and settings
+(core.fingerprint.probe_settings_values and the probes' stored layout). A dynamic object is in none of them: the
+probes are baked without it, so it moves freely through them.
 """
 
 from dataclasses import asdict
@@ -19,7 +25,7 @@ from dataclasses import asdict
 import numpy as np
 
 from ..core import fingerprint as digests
-from . import geometry, materials, storage, texel_bake
+from . import geometry, materials, probe_volumes, storage, texel_bake
 from .geometry import directions_to_world, points_to_world
 from .mesh_arrays import mesh_corner_normals, mesh_corner_vertices, mesh_positions, mesh_triangles
 from .occluders import shadow_caster
@@ -53,15 +59,45 @@ def _settings_digest(ob, settings, storage_options) -> str:
     return digests.values_digest(values)
 
 
+def volume_fingerprints(depsgraph, volumes, settings) -> dict[str, dict[str, str]]:
+    """Each probe volume's fingerprint (blender.probe_volumes.VolumeInput) under these bake settings, by name."""
+    if not volumes:
+        return {}
+    bouncing = settings.mode == "interreflected"
+    casters = digests.set_digest(digest for _, digest in _caster_digests(depsgraph, bouncing))
+    values = digests.values_digest(digests.probe_settings_values(settings) | {"layout": probe_volumes.PROBE_LAYOUT})
+    return {volume.name: {**_placement_parts(volume), "occluders": casters, "settings": values} for volume in volumes}
+
+
+def _placement_parts(volume) -> dict[str, str]:
+    return {"transform": digests.array_digest(volume.matrix),
+            "resolution": digests.array_digest(np.array(volume.resolution))}
+
+
+def placement_changes(ob) -> list[str]:
+    """What of a baked probe volume's placement changed since its bake (moved or scaled, resolution changed), in
+    words: the parts of its fingerprint cheap enough for every redraw and display update (the static scene's part
+    reads every mesh: Check computes it). [] for a volume without a fingerprinted bake."""
+    meta = ob.get(probe_volumes.METADATA_KEY)
+    stored = None if meta is None else meta.get(FINGERPRINT_KEY)
+    if stored is None:
+        return []
+    current = _placement_parts(probe_volumes.volume_input(ob))
+    return [words for part, words in digests.PROBE_CHANGES.items()
+            if part in current and stored.get(part) != current[part]]
+
+
 def what_changed(ob, current: dict) -> list[str]:
-    """What changed since the object's stored bake, in words; [] when it is up to date."""
-    meta = ob.data.get(storage.METADATA_KEY)
+    """What changed since the object's stored bake (a mesh's, or a probe volume's probes), in words; [] when it is
+    up to date."""
+    volume = probe_volumes.is_probe_volume(ob)
+    meta = ob.get(probe_volumes.METADATA_KEY) if volume else ob.data.get(storage.METADATA_KEY)
     if meta is None:
         return ["not baked"]
     stored = meta.get(FINGERPRINT_KEY)
     if stored is None:
         return ["baked without a fingerprint"]
-    return digests.changes(stored.to_dict(), current)
+    return digests.changes(stored.to_dict(), current, digests.PROBE_CHANGES if volume else digests.CHANGES)
 
 
 def stale_receivers(context, settings, names=None) -> dict[str, list[str]]:
@@ -75,13 +111,29 @@ def stale_receivers(context, settings, names=None) -> dict[str, list[str]]:
             for ob in candidates}
 
 
-def stale_line(changed: dict[str, list[str]]) -> str:
-    """One line: what Bake Stale rebakes and why, or that everything is up to date."""
-    stale = {name: words for name, words in changed.items() if words}
+def stale_volumes(context, settings) -> dict[str, list[str]]:
+    """The probe volumes a bake under these settings would bake (the visible ones; none for an unshadowed bake,
+    which leaves them as they were), each with what changed since its bake ([]: up to date)."""
+    if settings.mode == "unshadowed":
+        return {}
+    context.view_layer.update()
+    volumes = probe_volumes.volumes_to_bake(context, [])
+    current = volume_fingerprints(context.evaluated_depsgraph_get(), volumes, settings)
+    return {volume.name: what_changed(context.scene.objects[volume.name], current[volume.name]) for volume in volumes}
+
+
+def stale_line(changed: dict[str, list[str]], volumes: dict[str, list[str]] | None = None) -> str:
+    """One line: what Bake Stale rebakes and why (receivers, then probe volumes: stale_volumes), or that everything
+    is up to date."""
+    counted = [(changed, "objects")] + ([(volumes, "probe volumes")] if volumes else [])
+    stale = {name: words for found, _ in counted for name, words in found.items() if words}
     if not stale:
-        return f"PRT bake stale: nothing to rebake, {len(changed)} objects up to date"
+        counts = " and ".join(f"{len(found)} {kind}" for found, kind in counted)
+        return f"PRT bake stale: nothing to rebake, {counts} up to date"
     listed = "; ".join(f"{name} ({', '.join(words)})" for name, words in stale.items())
-    return f"PRT bake stale: rebaking {len(stale)} of {len(changed)} objects: {listed}"
+    shares = " and ".join(f"{sum(1 for words in found.values() if words)} of {len(found)} {kind}"
+                          for found, kind in counted)
+    return f"PRT bake stale: rebaking {shares}: {listed}"
 
 
 def _geometry_digest(ob, depsgraph) -> str:

@@ -103,7 +103,7 @@ def plan_bake(request: BakeRequest) -> BakePlan:
                 plan.problems.append(str(problem))
                 continue
         plan.receivers.append(planned)
-    if not plan.receivers:
+    if not plan.receivers and not request.probe_volumes:
         raise InputError("nothing to bake: " + "; ".join(plan.problems))
     texel_plan.check_memory([receiver.layout for receiver in plan.receivers if receiver.layout], settings.order)
     plan.albedo = albedo_channels([s.albedo for s in plan.solved_surfaces()]) if bouncing else None

@@ -10,12 +10,13 @@ Stored on the Empty, as custom properties saved in the .blend with it:
 - `prt_probes` (a group): layout (PROBE_LAYOUT), order, channels, resolution, placement (where the probes were
   baked: the matrix taking core.probe_grid's cube [−1, 1]³ to world space, the display size included, 16 floats by
   rows; moving the Empty afterwards does not move them), mode, samples, rays, seed, inside_probes, est_max_error
-  (the largest probe's standard error, Frobenius norm), date, bake_id.
+  (the largest probe's standard error, Frobenius norm), date, bake_id, fingerprint (what the probes depend on, a
+  group of digests: blender.fingerprint.volume_fingerprints, so a check can tell stale probes).
 An Empty has no mesh whose attributes could hold them; ID property arrays are saved, duplicated and deleted with the
 object, and read back through the buffer protocol at once (a million floats in milliseconds).
 """
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from datetime import datetime, timezone
 import uuid
 
@@ -36,11 +37,12 @@ PROBE_LAYOUT = 1  # bump when the stored layout or its conventions change
 
 @dataclass
 class VolumeInput:
-    """A probe volume to bake: its name, placement (4, 4: core.probe_grid's cube to world space) and probes per
-    axis."""
+    """A probe volume to bake: its name, placement (4, 4: core.probe_grid's cube to world space), probes per axis
+    and, once the request has read the scene, its fingerprint (blender.fingerprint.volume_fingerprints)."""
     name: str
     matrix: np.ndarray
     resolution: tuple
+    fingerprint: dict = field(default_factory=dict)
 
     @property
     def positions(self) -> np.ndarray:
@@ -71,13 +73,19 @@ def volumes_to_bake(context, problems: list) -> list[VolumeInput]:
     for ob in context.view_layer.objects:
         if not (is_probe_volume(ob) and ob.visible_get()):
             continue
-        # The cube drawn: [−size, size]³ in the Empty's frame, which core.probe_grid takes as [−1, 1]³.
-        matrix = np.array(ob.matrix_world, dtype=np.float64) @ np.diag([ob.empty_display_size] * 3 + [1.0])
-        if abs(np.linalg.det(matrix[:3, :3])) < 1e-12:
+        volume = volume_input(ob)
+        if abs(np.linalg.det(volume.matrix[:3, :3])) < 1e-12:
             problems.append(f"{ob.name!r}: a probe volume flat on an axis (zero scale) holds no probes; scale it")
             continue
-        found.append(VolumeInput(ob.name, matrix, tuple(getattr(ob, OBJECT_PREFIX + spec.PROBE_RESOLUTION.name))))
+        found.append(volume)
     return found
+
+
+def volume_input(ob) -> VolumeInput:
+    """The probe volume as it stands now: its placement (the cube drawn, [−size, size]³ in the Empty's frame, which
+    core.probe_grid takes as [−1, 1]³) and its probes per axis."""
+    matrix = np.array(ob.matrix_world, dtype=np.float64) @ np.diag([ob.empty_display_size] * 3 + [1.0])
+    return VolumeInput(ob.name, matrix, tuple(getattr(ob, OBJECT_PREFIX + spec.PROBE_RESOLUTION.name)))
 
 
 def write(volumes: list[VolumeInput], probes, settings) -> list[str]:
@@ -103,6 +111,7 @@ def write(volumes: list[VolumeInput], probes, settings) -> list[str]:
             "mode": settings.mode, "samples": settings.samples, "rays": probes.rays, "seed": settings.seed,
             "inside_probes": inside, "est_max_error": float(probes.std_error[rows].max(initial=0.0)),
             "date": datetime.now(timezone.utc).isoformat(timespec="seconds"), "bake_id": uuid.uuid4().hex,
+            "fingerprint": volume.fingerprint,
         }
         ob.update_tag()  # the display reads the new probes (blender.relighting)
         lines.append(f"probe volume {volume.name!r}: {len(matrices)} probes, {inside} inside geometry and left out")

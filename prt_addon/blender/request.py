@@ -50,13 +50,14 @@ class BakeRequest:
 
 @old_objects_frozen()  # reading makes many lists for Blender and numpy, as a job's steps do
 def read_request(context, settings: bake.BakeSettings, object_names=None, storage_options=None,
-                 farm: bool = False, casts: bool = True) -> BakeRequest:
+                 farm: bool = False, casts: bool = True, volume_names=None) -> BakeRequest:
     """The bake of `object_names` (else the selected meshes, else every visible mesh) as the scene is now, its
     settings naming the ray engine that casts its rays here (core.engines.choose), which its occluders then carry.
     storage_options: texel_bake.TexelOptions fields that override every receiver's own (the command line's).
     `farm`: shards bake it and a merge stores it, so every receiver must be stored per vertex. `casts`: False for a
-    merge of farm parts, whose engine (the parts') need not be installed here. Raises InputError, naming the
-    problem, where nothing can be baked."""
+    merge of farm parts, whose engine (the parts') need not be installed here. `volume_names`: the probe volumes to
+    bake (a stale-only bake's), which also makes `object_names` exactly the receivers, none where it is empty;
+    None: every visible probe volume. Raises InputError, naming the problem, where nothing can be baked."""
     problems = settings.problems()
     if problems:
         raise InputError("; ".join(problems))
@@ -69,7 +70,8 @@ def read_request(context, settings: bake.BakeSettings, object_names=None, storag
     request.notes += [note] if note else []
     bouncing = settings.mode == "interreflected"
     objects, meshes = [], {}
-    for ob in geometry.receivers_from_selection(context, object_names):
+    only_volumes = volume_names is not None and not object_names
+    for ob in [] if only_volumes else geometry.receivers_from_selection(context, object_names):
         try:
             if ob.type == "MESH" and ob.data.name in meshes:
                 raise InputError(
@@ -84,7 +86,7 @@ def read_request(context, settings: bake.BakeSettings, object_names=None, storag
         objects.append(ob)
         request.receivers.append(ReceiverInput(ob.name, surface, len(ob.data.vertices),
                                                texel_bake.options_for(ob, overrides)))
-    if not request.receivers:
+    if not request.receivers and not only_volumes:
         raise InputError("nothing to bake: " + ("; ".join(request.problems) or "no mesh objects"))
     if farm:  # before the occluders are gathered
         texel_bake.refuse_on_farm(objects, overrides)
@@ -93,16 +95,19 @@ def read_request(context, settings: bake.BakeSettings, object_names=None, storag
     everyone = request.receivers
     dynamic = [geometry.is_dynamic(ob) for ob in objects]
     request.receivers = [receiver for receiver, own in zip(everyone, dynamic) if not own]
-    if request.receivers:
+    if request.receivers or only_volumes:
         _gather_scene(request, context, depsgraph)
-        _gather_probe_volumes(request, context)
+        _gather_probe_volumes(request, context, depsgraph, volume_names)
+        if not request.receivers and not request.probe_volumes:
+            raise InputError("nothing to bake: " + ("; ".join(request.problems + request.notes)
+                                                    or "no visible probe volume"))
     for ob, receiver in zip(objects, everyone):
         if receiver.options.storage != "vertex":
             receiver.texels = texel_bake.texel_input(ob, receiver.surface, depsgraph, receiver.options)
         if settings.mode != "unshadowed":
             receiver.subsurface = materials.subsurface_material(ob)
     parts = [_alone(request, receiver) for receiver, own in zip(everyone, dynamic) if own]
-    if not request.receivers:  # dynamic receivers only: the first is the bake, the others its parts
+    if not request.receivers and parts:  # dynamic receivers only: the first is the bake, the others its parts
         return replace(parts[0], problems=request.problems, notes=request.notes, parts=parts[1:])
     request.parts = parts
     return request
@@ -122,16 +127,20 @@ def _gather_scene(request: BakeRequest, context, depsgraph):
                                  "each receiver is shadowed by the receivers only")
 
 
-def _gather_probe_volumes(request: BakeRequest, context):
-    """The visible probe volumes, baked with the static scene's shadows, in this process (a farm's shards share out
-    the receivers only)."""
-    volumes = probe_volumes.volumes_to_bake(context, request.problems)
+def _gather_probe_volumes(request: BakeRequest, context, depsgraph, names=None):
+    """The visible probe volumes (those `names`, else all), baked with the static scene's shadows, in this process
+    (a farm's shards share out the receivers only), with their fingerprints."""
+    volumes = [volume for volume in probe_volumes.volumes_to_bake(context, request.problems)
+               if names is None or volume.name in names]
     if volumes and request.occluders is None:
         request.notes.append("probe volumes hold the scene's shadows: an unshadowed bake leaves them as they were")
     elif volumes and request.farm:
         request.notes.append("probe volumes bake on one machine: a farm bake leaves them as they were")
     else:
         request.probe_volumes = volumes
+        current = fingerprint.volume_fingerprints(depsgraph, volumes, request.settings)
+        for volume in volumes:
+            volume.fingerprint = current[volume.name]
 
 
 def _alone(request: BakeRequest, receiver: ReceiverInput) -> BakeRequest:

@@ -8,7 +8,7 @@ import bpy
 from ..blender import checks as scene_checks
 from ..blender.execute import execute, local_executor
 from ..blender.farm import bake_share, bake_shard, build_ray_tree, farm_plan, merge_parts
-from ..blender.fingerprint import stale_line, stale_receivers
+from ..blender.fingerprint import stale_line, stale_receivers, stale_volumes
 from ..blender.geometry import receivers_from_selection
 from ..blender.plan import plan_bake
 from ..blender.request import read_request
@@ -43,7 +43,8 @@ def add_parser(commands):
     parser.add_argument("--report", help="write the bake report as JSON here")
     parser.add_argument("--stale-only", action="store_true",
                         help="rebake only the receivers whose geometry, transform, occluders, materials or settings "
-                             "changed since their bake (or that have none); nothing is written when none did")
+                             "changed since their bake (or that have none), and the visible probe volumes moved, "
+                             "resized or seeing a changed static scene since theirs; nothing is written when none did")
     light_options.add_arguments(parser)
     farm = parser.add_argument_group("farm", "one bake spread over a render farm (the manual's Farms page)")
     farm.add_argument("--shard", metavar="K/N", help="bake only shard K of N (K from 1 to N) into the part file "
@@ -118,11 +119,16 @@ def run(args, in_blender: bool) -> int:
     found = [scene_checks.output_check(args.output or bpy.data.filepath, required=True)]
     checks.stop_on_errors(found)  # before the scene is gathered: a wrong --output fails at once
     light_options.add_lights(bpy.context.scene, args)
+    volumes = None  # every visible probe volume
     if args.stale_only:
-        changed = stale_receivers(bpy.context, settings, receivers)
-        log(stale_line(changed))
+        changed, probes = stale_receivers(bpy.context, settings, receivers), stale_volumes(bpy.context, settings)
+        log(stale_line(changed, probes))
         receivers = [name for name, words in changed.items() if words]
-        if not receivers:
+        volumes = [name for name, words in probes.items() if words]
+        if args.dask and volumes:
+            warn([f"probe volumes bake on one machine: --dask leaves {', '.join(map(repr, volumes))} stale"])
+            volumes = []
+        if not receivers and not volumes:
             return 0
     if args.dask:
         # The engine is chosen here, once: every shard, on whatever machine, casts with it.
@@ -139,7 +145,7 @@ def run(args, in_blender: bool) -> int:
             report = merge_parts(bpy.context, parts, log=log, plan=plan)
         warn(report.problems + report.notes)
     else:
-        plan = plan_bake(read_request(bpy.context, settings, receivers, storage_options(args)))
+        plan = plan_bake(read_request(bpy.context, settings, receivers, storage_options(args), volume_names=volumes))
         executor = local_executor(spec.worker_count(workers))
         found += scene_checks.scene_checks(bpy.context, plan, executor)
         log("prt: checks before any ray:")

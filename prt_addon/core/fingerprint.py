@@ -23,6 +23,13 @@ CHANGES = {
     "settings": "settings changed",
 }
 PARTS = tuple(CHANGES)
+# A probe volume's parts (blender.fingerprint.volume_fingerprints): where its probes stand and what they see.
+PROBE_CHANGES = {
+    "transform": "moved or scaled",
+    "resolution": "resolution changed",
+    "occluders": "static scene changed",
+    "settings": "settings changed",
+}
 
 
 def _digest(*chunks: bytes) -> str:
@@ -72,7 +79,17 @@ def settings_values(settings: BakeSettings) -> dict:
         "convention": CONVENTION_VERSION}
 
 
-def changes(stored: dict, current: dict) -> list[str]:
-    """What changed between a stored fingerprint and the current one, in words, in the order of PARTS; [] when
-    nothing did."""
-    return [CHANGES[part] for part in PARTS if stored.get(part) != current[part]]
+def probe_settings_values(settings: BakeSettings) -> dict:
+    """The settings a probe volume's bake reads: a receiver's (settings_values), but for the target error and max
+    samples outside interreflected bakes, since a probe casts Samples rays whatever they are (interreflected, its
+    bounces gather the solved surfaces' light, which reads them)."""
+    values = settings_values(settings)
+    if settings.mode != "interreflected":
+        values = {name: value for name, value in values.items() if name not in {"target_error", "max_samples"}}
+    return values
+
+
+def changes(stored: dict, current: dict, told: dict = CHANGES) -> list[str]:
+    """What changed between a stored fingerprint and the current one, in words, in the order of `told`'s parts
+    (CHANGES, a receiver's; PROBE_CHANGES, a probe volume's); [] when nothing did."""
+    return [words for part, words in told.items() if stored.get(part) != current[part]]

@@ -30,14 +30,15 @@ def forget_checklist(*args):
     _checklist.clear()
 
 
-def checked_bake(context, receivers=None):
-    """The plan of the bake the panel's settings describe (of `receivers`, or the default ones), the executor that
-    would bake it, and every check on them, stored for the panel; nothing is written and no ray of the bake is
-    cast. The plan is None when the bake cannot start (the checklist then holds why)."""
+def checked_bake(context, receivers=None, volumes=None):
+    """The plan of the bake the panel's settings describe (of `receivers`, or the default ones, and the probe
+    volumes `volumes`, or every visible one: blender.request.read_request), the executor that would bake it, and
+    every check on them, stored for the panel; nothing is written and no ray of the bake is cast. The plan is None
+    when the bake cannot start (the checklist then holds why)."""
     settings = context.scene.prt_bake
     executor = local_executor(spec.worker_count(settings.workers))
     try:
-        plan = plan_bake(read_request(context, settings.to_settings(), receivers))
+        plan = plan_bake(read_request(context, settings.to_settings(), receivers, volume_names=volumes))
     except InputError as problem:
         plan, found = None, [checks.Check(checks.ERROR, "bake", str(problem))]
     else:

@@ -125,10 +125,10 @@ class BakeJob(ModalJob):
         status = context.window_manager.prt_bake_status
         return context.mode == "OBJECT" and not status.running
 
-    def checked_bake(self, context, receivers=None):
+    def checked_bake(self, context, receivers=None, volumes=None):
         """The bake as a job (blender.scene_bake), once the checks on its plan pass: the panel lists them,
         warnings are reported, errors stop it."""
-        plan, executor, found = checked_bake(context, receivers)
+        plan, executor, found = checked_bake(context, receivers, volumes)
         for check in found:
             if check.level == checks.WARNING:
                 self.report({"WARNING"}, f"{check.subject}: {check.text}")

@@ -12,8 +12,8 @@ import time
 import bpy
 from bpy.props import CollectionProperty, StringProperty
 
-from ..blender import storage
-from ..blender.fingerprint import stale_line, stale_receivers
+from ..blender import probe_volumes, storage
+from ..blender.fingerprint import stale_line, stale_receivers, stale_volumes
 from ..blender.registration import classes_and_properties
 from .operators import BakeJob
 
@@ -26,8 +26,8 @@ class PRT_PG_stale_check(bpy.types.PropertyGroup):
 
 
 class PRT_OT_check_stale(bpy.types.Operator):
-    """Check which visible meshes' bakes are out of date, and what changed since (geometry, transform, occluders,
-    materials, settings)"""
+    """Check which visible meshes' bakes and probe volumes' probes are out of date, and what changed since
+    (geometry, transform, occluders, materials, settings; a volume's placement, resolution, static scene)"""
     bl_idname = "prt.check_stale"
     bl_label = "Check"
     bl_options = {"REGISTER"}
@@ -37,14 +37,25 @@ class PRT_OT_check_stale(bpy.types.Operator):
         return context.mode == "OBJECT"
 
     def execute(self, context):
+        settings = context.scene.prt_bake.to_settings()
         baked = storage.baked_objects(context.view_layer.objects)
-        if not baked:
-            self.report({"INFO"}, "no visible mesh has a PRT bake")
+        volumes = {name: words for name, words in stale_volumes(context, settings).items()
+                   if stored_bake_id(context.scene.objects[name])}
+        if not baked and not volumes:
+            self.report({"INFO"}, "no visible mesh or probe volume has a PRT bake")
             return {"CANCELLED"}
-        changed = stale_receivers(context, context.scene.prt_bake.to_settings(), [ob.name for ob in baked])
-        record_checks(context.window_manager.prt_stale_checks, changed)
-        self.report({"INFO"}, stale_line(changed))
+        changed = stale_receivers(context, settings, [ob.name for ob in baked]) if baked else {}
+        record_checks(context.window_manager.prt_stale_checks, changed | volumes)
+        self.report({"INFO"}, stale_line(changed, volumes))
         return {"FINISHED"}
+
+
+def stored_bake_id(ob) -> str:
+    """The id of the object's stored bake: a mesh's, or a probe volume's probes'; "" without one."""
+    if probe_volumes.is_probe_volume(ob):
+        return probe_volumes.bake_id(ob) or ""
+    meta = ob.data.get(storage.METADATA_KEY) if ob.type == "MESH" else None
+    return "" if meta is None else meta.get("bake_id", "")
 
 
 def record_checks(checks, changed: dict):
@@ -53,29 +64,31 @@ def record_checks(checks, changed: dict):
     for name, words in changed.items():
         entry = checks.add()
         entry.name, entry.changes, entry.checked = name, ", ".join(words), now
-        entry.bake_id = bpy.data.objects[name].data[storage.METADATA_KEY].get("bake_id", "")
+        entry.bake_id = stored_bake_id(bpy.data.objects[name])
 
 
 class PRT_OT_bake_stale(BakeJob, bpy.types.Operator):
     """Rebake only the receivers (selected meshes, else visible meshes) whose geometry, transform, occluders,
-    materials or bake settings changed since their bake, or that have none; the others keep their bake exactly"""
+    materials or bake settings changed since their bake, or that have none, and the visible probe volumes whose
+    placement, resolution, static scene or settings changed; the others keep their bake exactly"""
     bl_idname = "prt.bake_stale"
     bl_label = "Bake Stale"
 
     def make_job(self, context):
-        settings = context.scene.prt_bake
-        changed = stale_receivers(context, settings.to_settings())
-        self.report({"INFO"}, stale_line(changed))
+        settings = context.scene.prt_bake.to_settings()
+        changed, volumes = stale_receivers(context, settings), stale_volumes(context, settings)
+        self.report({"INFO"}, stale_line(changed, volumes))
         stale = [name for name, words in changed.items() if words]
-        return self.checked_bake(context, stale) if stale else None
+        stale_probes = [name for name, words in volumes.items() if words]
+        return self.checked_bake(context, stale, stale_probes) if stale or stale_probes else None
 
 
 def draw_status(layout, context, ob):
-    """The last Check's answer for the object's stored bake, and the Check button."""
-    meta = ob.data[storage.METADATA_KEY]
+    """The last Check's answer for the object's stored bake (a mesh's, or a probe volume's), and the Check
+    button."""
     check = context.window_manager.prt_stale_checks.get(ob.name)
     row = layout.row()
-    if check is None or check.bake_id != meta.get("bake_id", ""):
+    if check is None or check.bake_id != stored_bake_id(ob):
         row.label(text="Status not checked", icon="QUESTION")
     elif check.changes:
         row.label(text=f"Stale: {check.changes} ({check.checked})", icon="ERROR")

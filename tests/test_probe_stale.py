@@ -1,0 +1,141 @@
+"""Stale probe volumes: a probe volume's bake stores what its probes depend on (where they stand, how many, the
+static scene that shadows them and reflects light to them, the settings); a check says what changed, the panel and
+the display say so, and Bake Stale rebakes the stale volumes only, leaving the fresh ones and the receivers as they
+were, byte for byte.
+
+The scene: a floor, a wall (a box), a dynamic sphere and two probe volumes, baked shadowed at low samples (what is
+checked is what is rebaked, not the light).
+"""
+
+import bpy
+import numpy as np
+import pytest
+
+from test_stale import stored
+from prt_addon.blender import fingerprint, probe_volumes
+from prt_addon.core.bake import BakeSettings
+from prt_addon.core.fingerprint import PROBE_CHANGES
+
+SETTINGS = {"order": 3, "samples": 16, "mode": "shadowed", "workers": 1}
+
+
+def use_settings(**changed):
+    for key, value in {**SETTINGS, **changed}.items():
+        setattr(bpy.context.scene.prt_bake, key, value)
+
+
+def add_volume(location, scale, resolution):
+    bpy.ops.prt.add_probe_volume()
+    volume = bpy.context.object
+    volume.location, volume.scale, volume.prt_probe_resolution = location, scale, resolution
+    return volume
+
+
+@pytest.fixture
+def scene(empty_scene):
+    """(floor, wall, sphere, volume A, volume B), all baked; nothing selected."""
+    bpy.ops.mesh.primitive_plane_add(size=8.0)
+    floor = bpy.context.object
+    bpy.ops.mesh.primitive_cube_add(size=1.0, location=(0.0, 0.0, 1.0), scale=(0.4, 4.0, 2.0))
+    wall = bpy.context.object
+    bpy.ops.mesh.primitive_uv_sphere_add(segments=12, ring_count=6, radius=0.3, location=(-1.5, 0.0, 0.7))
+    sphere = bpy.context.object
+    sphere.prt_dynamic = True
+    first = add_volume((-1.5, 0.0, 1.0), (1.0, 1.0, 1.0), (2, 2, 2))
+    second = add_volume((1.5, 0.0, 1.0), (1.0, 1.0, 1.0), (3, 1, 2))
+    bpy.ops.object.select_all(action="DESELECT")
+    use_settings()
+    assert bpy.ops.prt.bake() == {"FINISHED"}
+    return floor, wall, sphere, first, second
+
+
+def stale(**settings) -> dict:
+    current = bpy.context.scene.prt_bake.to_settings()
+    return fingerprint.stale_volumes(bpy.context, BakeSettings(**{**vars(current), **settings}))
+
+
+def probes_stored(volume) -> tuple:
+    """The volume's arrays' bytes and metadata: what must not change when its bake is kept."""
+    return (bytes(np.frombuffer(volume[probe_volumes.TRANSFER_KEY], dtype=np.float32)),
+            bytes(np.frombuffer(volume[probe_volumes.VALID_KEY], dtype=np.int32)),
+            volume[probe_volumes.METADATA_KEY].to_dict())
+
+
+def test_a_probe_volume_stores_its_fingerprint_and_is_up_to_date(scene):
+    *_, first, second = scene
+    meta = first[probe_volumes.METADATA_KEY].to_dict()
+    assert sorted(meta[fingerprint.FINGERPRINT_KEY]) == sorted(PROBE_CHANGES)
+    assert stale() == {first.name: [], second.name: []}
+
+
+def test_what_makes_a_probe_volume_stale(scene):
+    floor, wall, sphere, first, second = scene
+    sphere.location = (1.5, 0.5, 1.2)  # a dynamic object is in no probe's bake
+    sphere.rotation_euler.z = 1.0
+    assert stale() == {first.name: [], second.name: []}
+    assert stale(target_error=0.01) == {first.name: [], second.name: []}  # a shadowed probe casts Samples rays
+    assert stale(samples=32) == {first.name: ["settings changed"], second.name: ["settings changed"]}
+    first.location.x += 0.25
+    second.scale.z = 1.5
+    assert stale() == {first.name: ["moved or scaled"], second.name: ["moved or scaled"]}
+    first.location.x -= 0.25
+    second.scale.z = 1.0
+    first.empty_display_size = 1.5
+    second.prt_probe_resolution = (3, 1, 3)
+    assert stale() == {first.name: ["moved or scaled"], second.name: ["resolution changed"]}
+    first.empty_display_size = 1.0
+    second.prt_probe_resolution = (3, 1, 2)
+    assert stale() == {first.name: [], second.name: []}
+    wall.location.x += 0.1  # a static wall: every probe may see it
+    assert stale() == {first.name: ["static scene changed"], second.name: ["static scene changed"]}
+    assert stale(mode="unshadowed") == {}  # an unshadowed bake bakes no probes
+
+
+def test_bake_stale_rebakes_a_moved_volume_alone_and_leaves_everything_else_byte_identical(scene):
+    floor, wall, sphere, first, second = scene
+    receivers = {ob.name: stored(ob) for ob in (floor, wall, sphere)}
+    kept = probes_stored(second)
+    old = probes_stored(first)
+    first.location.x -= 0.5
+    assert stale() == {first.name: ["moved or scaled"], second.name: []}
+    assert bpy.ops.prt.bake_stale() == {"FINISHED"}
+    assert stale() == {first.name: [], second.name: []}
+    assert probes_stored(second) == kept
+    assert {ob.name: stored(ob) for ob in (floor, wall, sphere)} == receivers
+    assert probes_stored(first)[2]["bake_id"] != old[2]["bake_id"]
+    placement = np.array(first[probe_volumes.METADATA_KEY]["placement"]).reshape(4, 4)
+    np.testing.assert_allclose(placement, np.array(first.matrix_world), atol=1e-6)
+    rebaked = probes_stored(first)
+    assert bpy.ops.prt.bake_stale() == {"CANCELLED"}  # nothing stale: nothing baked, nothing written
+    assert probes_stored(first) == rebaked and probes_stored(second) == kept
+
+
+def test_bake_stale_rebakes_volumes_with_the_receivers_a_moved_wall_made_stale(scene):
+    floor, wall, sphere, first, second = scene
+    dynamic = stored(sphere)
+    ids = {volume.name: volume[probe_volumes.METADATA_KEY]["bake_id"] for volume in (first, second)}
+    wall.location.x += 0.1
+    assert bpy.ops.prt.bake_stale() == {"FINISHED"}
+    assert stale() == {first.name: [], second.name: []}
+    assert all(volume[probe_volumes.METADATA_KEY]["bake_id"] != ids[volume.name] for volume in (first, second))
+    assert stored(sphere) == dynamic  # the dynamic sphere does not see the wall
+    assert fingerprint.stale_receivers(bpy.context, bpy.context.scene.prt_bake.to_settings()) == {
+        floor.name: [], wall.name: [], sphere.name: []}
+
+
+@pytest.mark.parametrize("mode", ["shadowed", "interreflected"])
+def test_a_volume_rebaked_alone_holds_the_probes_a_whole_bake_gives(scene, mode):
+    """Rebaked alone, with no receiver stale, a volume is baked against the same scene (interreflected: the
+    surfaces solved as bouncers, since none is a receiver) with the same rays (its probes' are keyed by its name,
+    not by the volumes baked with it): its probes are those of a bake of everything, bit for bit."""
+    floor, wall, sphere, first, second = scene
+    use_settings(mode=mode)
+    assert bpy.ops.prt.bake() == {"FINISHED"}
+    second.location.x += 0.5
+    assert bpy.ops.prt.bake_stale() == {"FINISHED"}
+    alone = probe_volumes.read(second)
+    assert bpy.ops.prt.bake() == {"FINISHED"}
+    whole = probe_volumes.read(second)
+    np.testing.assert_array_equal(alone.matrices, whole.matrices)
+    np.testing.assert_array_equal(alone.valid, whole.valid)
+
