@@ -11,6 +11,7 @@ import bpy
 import numpy as np
 import pytest
 
+from conftest import add_light, labels_drawn
 from test_stale import stored
 from prt_addon.blender import fingerprint, probe_volumes
 from prt_addon.core.bake import BakeSettings
@@ -139,3 +140,49 @@ def test_a_volume_rebaked_alone_holds_the_probes_a_whole_bake_gives(scene, mode)
     np.testing.assert_array_equal(alone.matrices, whole.matrices)
     np.testing.assert_array_equal(alone.valid, whole.valid)
 
+
+def panel(volume) -> list[str]:
+    bpy.context.view_layer.objects.active = volume
+    return labels_drawn(bpy.types.PRT_PT_probe_volume, [])
+
+
+def test_the_panel_says_at_once_that_a_volume_moved_and_after_check_that_the_scene_changed(scene):
+    floor, wall, sphere, first, second = scene
+    assert "Status not checked" in panel(first)
+    assert bpy.ops.prt.check_stale() == {"FINISHED"}
+    assert any(line.startswith("Up to date (") for line in panel(first))
+    first.location.x += 0.5
+    second.prt_probe_resolution = (2, 1, 2)
+    bpy.context.view_layer.update()
+    assert "Stale: moved or scaled since the bake" in panel(first)  # before any Check: a matrix's digest
+    assert "Stale: resolution changed since the bake" in panel(second)
+    wall.location.x += 0.1
+    assert bpy.ops.prt.check_stale() == {"FINISHED"}
+    assert any(line.startswith("Stale: moved or scaled, static scene changed (") for line in panel(first))
+    assert any(line.startswith("Stale: resolution changed, static scene changed (") for line in panel(second))
+    assert bpy.ops.prt.bake_stale() == {"FINISHED"}
+    assert "Status not checked" in panel(first)  # a new bake: the check was of the old one
+    assert not any(line.startswith("Stale:") for line in panel(first) + panel(second))
+
+
+def test_the_display_lights_from_a_moved_volume_where_it_was_baked_and_says_so(scene, capfd):
+    """The probes stay where they were baked: a dynamic sphere inside them is lit as before the volume moved."""
+    floor, wall, sphere, first, second = scene
+    add_light(theta=1.0, phi=0.0, strength=3.0, angular_radius=0.0)  # the wall shadows the sphere
+    sphere.location.z += 0.01  # a refresh with the sphere where the probes are
+    bpy.context.view_layer.update()
+    before = np.array([colour.color[:] for colour in sphere.data.color_attributes["prt_color"].data])
+    first.location.x -= 3.0  # away from the sphere: it would get the distant light alone from the volume here
+    sphere.location.z -= 0.01
+    bpy.context.view_layer.update()
+    sphere.location.z += 0.01
+    bpy.context.view_layer.update()
+    after = np.array([colour.color[:] for colour in sphere.data.color_attributes["prt_color"].data])
+    np.testing.assert_array_equal(after, before)
+    del first[probe_volumes.METADATA_KEY]  # without its probes, the distant light: the wall's shadow is gone
+    sphere.location.z -= 0.01
+    bpy.context.view_layer.update()
+    unshadowed = np.array([colour.color[:] for colour in sphere.data.color_attributes["prt_color"].data])
+    assert unshadowed[:, 0].mean() > 1.5 * before[:, 0].mean()
+    assert (f"PRT: probe volume {first.name!r}: moved or scaled since its bake; lighting from its probes where they "
+            f"were baked until Bake Stale rebakes it") in capfd.readouterr().out

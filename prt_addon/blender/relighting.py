@@ -19,6 +19,7 @@ from ..core import settings as spec
 from ..core.arrays import one_thread_product
 from ..core.errors import StaleBake
 from . import display, heatmaps, layouts, probe_volumes, storage
+from .fingerprint import placement_changes
 from .lights import environment_image, scene_lights, sync_sun_lamps
 from .texel_bake import OBJECT_PREFIX
 
@@ -134,8 +135,14 @@ class Relighter:
             print(message)
 
     def probes(self, scene) -> list:
-        """The scene's baked probe volumes (blender.probe_volumes.StoredProbes), each read once per bake; a stale
-        one is reported once and never applied."""
+        """The scene's baked probe volumes (blender.probe_volumes.StoredProbes), each read once per bake; one whose
+        stored layout does not fit is reported once and never applied.
+
+        A volume moved, scaled or given another resolution since its bake still lights, from its probes where they
+        were baked (their placement is stored), and says so once: those probes are as right there as they were,
+        while leaving them out would light the objects inside by the distant light, without the scene's shadows.
+        A receiver's stale bake is shown too; whether the static scene changed since, Check tells (it reads every
+        mesh: too slow for every update)."""
         found = []
         for ob in scene.objects:
             key = probe_volumes.bake_id(ob) if probe_volumes.is_probe_volume(ob) else None
@@ -149,6 +156,10 @@ class Relighter:
                     self._report_once(f"PRT: not lighting from probes: {problem}")
             if self._volumes[ob.name_full][1] is not None:
                 found.append(self._volumes[ob.name_full][1])
+                moved = placement_changes(ob)
+                if moved:
+                    self._report_once(f"PRT: probe volume {ob.name!r}: {', '.join(moved)} since its bake; lighting "
+                                      f"from its probes where they were baked until Bake Stale rebakes it")
         return found
 
     def _shade(self, scene, receivers, settings, depsgraph):

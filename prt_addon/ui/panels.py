@@ -5,6 +5,7 @@ Validation in validation.py."""
 import bpy
 
 from ..blender import layouts, probe_volumes, storage
+from ..blender.fingerprint import placement_changes
 from ..blender.request import ray_engine_label
 from ..core import engines, rules
 from .checks import draw_checklist
@@ -167,6 +168,11 @@ class PRT_PT_probe_volume(SidebarPanel, bpy.types.Panel):
         if meta is None:
             layout.label(text="Not baked", icon="INFO")
             return
+        moved = placement_changes(ob)
+        if moved:  # told at once, as a mesh's changed vertex count is: it costs a 4 × 4 matrix's digest
+            layout.label(text=f"Stale: {', '.join(moved)} since the bake", icon="ERROR")
+            layout.label(text="Its probes light from where they were baked")
+        draw_status(layout, context, ob)
         column = layout.column(align=True)
         column.label(text=f"Order {meta['order']}, {meta['mode']}, {meta['rays']} rays per probe")
         column.label(text=f"{meta['inside_probes']} probes inside geometry, left out")
