@@ -11,7 +11,7 @@ import bpy
 import numpy as np
 import pytest
 
-from conftest import add_light, labels_drawn
+from conftest import add_light, labels_drawn, run_cli
 from test_stale import stored
 from prt_addon.blender import fingerprint, probe_volumes
 from prt_addon.core.bake import BakeSettings
@@ -186,3 +186,21 @@ def test_the_display_lights_from_a_moved_volume_where_it_was_baked_and_says_so(s
     assert unshadowed[:, 0].mean() > 1.5 * before[:, 0].mean()
     assert (f"PRT: probe volume {first.name!r}: moved or scaled since its bake; lighting from its probes where they "
             f"were baked until Bake Stale rebakes it") in capfd.readouterr().out
+
+
+def test_cli_stale_only_rebakes_a_moved_volume_alone_then_nothing(scene, tmp_path):
+    *_, first, second = scene
+    first.location.y += 0.3
+    path = tmp_path / "probes.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(path))
+    options = ("--order", "3", "--samples", "16", "--mode", "shadowed", "--stale-only")
+    result = run_cli("bake", path, *options)
+    assert result.returncode == 0, result.stderr
+    assert (f"PRT bake stale: rebaking 0 of 3 objects and 1 of 2 probe volumes: {first.name} (moved or scaled)"
+            in result.stdout)
+    assert "PRT bake: 0 objects" in result.stdout and "; 8 probes in 1 probe volume, 128 rays" in result.stdout
+    baked = path.read_bytes()
+    result = run_cli("bake", path, *options)
+    assert result.returncode == 0, result.stderr
+    assert "PRT bake stale: nothing to rebake, 3 objects and 2 probe volumes up to date" in result.stdout
+    assert path.read_bytes() == baked
