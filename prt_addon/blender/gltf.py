@@ -11,9 +11,10 @@ A texel bake travels as its maps (core.gltf_pack.PackedMaps: RGBA32F buffer view
 which the exporter writes as a TEXCOORD like every UV map), under every profile, since they are no vertex
 attributes; its COLOR_0 holds the shaded maps sampled at each face corner's lightmap UV.
 
-A dynamic object's mesh is flagged in its extras (its transfer is in its own frame) and its COLOR_0 is shaded as the
-display shades it where it stands (blender.relighting.dynamic_light); the scene's probe volumes travel in the
-scene's extras with their matrices as buffer views (core.gltf_probes).
+A dynamic object's mesh is flagged in its extras (its transfer is in its own frame, and where it takes the probes'
+light: per vertex or at its centre) and its COLOR_0 is shaded as the display shades it where it stands
+(blender.relighting.dynamic_radiance, dynamic_light); the scene's probe volumes travel in the scene's extras with
+their matrices as buffer views (core.gltf_probes).
 """
 
 import contextlib
@@ -45,7 +46,7 @@ def export(scene, path: str, profile_name: str) -> dict:
     if not baked:
         raise InputError("no visible mesh has a PRT bake to export")
     packs = {ob.name: bake.packed for ob, bake in baked}
-    dynamic = {ob.name for ob, bake in baked if bake.meta.get(storage.DYNAMIC_KEY, False)}
+    dynamic = {ob.name: "centre" for ob, bake in baked if bake.meta.get(storage.DYNAMIC_KEY, False)}
     stored, volumes, notes = _probe_volumes(scene)
     shining, window, light_source = _lights(scene)
     orders = {bake.meta["order"] for _, bake in baked}
@@ -58,6 +59,11 @@ def export(scene, path: str, profile_name: str) -> dict:
                 mesh = _link_copy(temporary, ob).data
                 _write_packing(mesh, bake.packed, bake.corner_points)
                 light = totals[bake.meta["order"]]
+                radiance = _vertex_radiance(ob, bake, light, stored) if ob.name in dynamic else None
+                if radiance is not None:
+                    dynamic[ob.name] = "vertex"
+                    display.write_radiance(mesh, radiance, bake.corner_points)
+                    continue
                 if ob.name in dynamic:
                     light = relighting.dynamic_light(stored, ob, light)
                 display.write_display_colours(mesh, bake.transfer, light, bake.corner_points)
@@ -70,8 +76,18 @@ def export(scene, path: str, profile_name: str) -> dict:
             "lights": gltf_pack.light_extras(shining, top_order)})
     return {"path": os.path.abspath(path), "profile": profile.name, "objects": list(packs),
             "packs": packs, "light_source": light_source, "dynamic": sorted(dynamic),
+            "lit_per_vertex": sorted(name for name, where in dynamic.items() if where == "vertex"),
             "probe_volumes": [volume.name for volume in volumes],
             "notes": notes + [note for note in (materials.lost_note(ob) for ob, _ in baked) if note is not None]}
+
+
+def _vertex_radiance(ob, bake, light, stored):
+    """(P, 3) a dynamic object's radiance per shading point where the display lights it per vertex through the
+    probes (blender.relighting.dynamic_radiance), else None (lit at its centre)."""
+    layout = layouts.stored(ob.data)
+    shading = layouts.Shading(bake.transfer, layout, bake.corner_points)
+    points = layout.points(ob.data, shading)
+    return relighting.dynamic_radiance(ob, ob, shading, points, light, stored)
 
 
 def _probe_volumes(scene):
@@ -196,16 +212,18 @@ def _run_exporter(temporary, path):
 
 
 def _finish_file(path, scene_name, packs, dynamic, volumes, scene_extras):
-    """Adds extras, data textures, probe volumes and the original names to the exporter's GLB; `dynamic`: the names
-    of the dynamic objects, `volumes` the probe volumes (core.gltf_probes.PackedProbes)."""
+    """Adds extras, data textures, probe volumes and the original names to the exporter's GLB; `dynamic`: the
+    dynamic objects' names, each with where it takes the probes' light ("vertex" or "centre"), `volumes` the probe
+    volumes (core.gltf_probes.PackedProbes)."""
     with open(path, "rb") as file:
         document, binary = glb.read(file.read())
     for mesh in document.get("meshes", []):
         packed = packs[mesh["name"].removeprefix(COPY_PREFIX)]
         views = [glb.append_buffer_view(document, binary, array.tobytes()) for array in packed.buffers()]
         mesh["extras"] = {"prt": packed.extras(views)}
-        if mesh["name"].removeprefix(COPY_PREFIX) in dynamic:
-            mesh["extras"]["prt"]["dynamic"] = True
+        where = dynamic.get(mesh["name"].removeprefix(COPY_PREFIX))
+        if where is not None:
+            mesh["extras"]["prt"].update(dynamic=True, probe_light=where)
     for item in document.get("nodes", []) + document.get("meshes", []):
         item["name"] = item.get("name", "").removeprefix(COPY_PREFIX)
     scene = document["scenes"][document.get("scene", 0)]

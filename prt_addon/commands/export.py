@@ -55,6 +55,7 @@ def gltf_summary(done: dict) -> str:
     """One line: where, which profile, how each mesh was packed, under which light COLOR_0 was shaded."""
     packs = "; ".join(f"{name}: {p.describe()}" for name, p in done["packs"].items())
     moving = "".join(f"; {label}: {', '.join(done[key])}" for key, label in
-                     (("dynamic", "dynamic"), ("probe_volumes", "probe volumes")) if done[key])
+                     (("dynamic", "dynamic"), ("lit_per_vertex", "lit per vertex"), ("probe_volumes", "probe volumes"))
+                     if done[key])
     return (f"wrote {done['path']} ({done['profile']} profile): {packs}{moving}; "
             f"COLOR_0 under {done['light_source']}")

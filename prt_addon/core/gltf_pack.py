@@ -27,8 +27,9 @@ CONVENTION = {
     "packing": "per vertex, channel-major (all of channel 0's coefficients, then channel 1's ...), zero-padded to "
                "a multiple of 4, four floats per VEC4 attribute or RGBA32F texel",
     "dynamic": "a mesh whose extras.prt has dynamic true holds its transfer in its node's own frame (glTF axes), "
-               "lit by the light arriving at its bounding box's centre (the probe volumes', else the distant one) "
-               "turned into that frame: the coefficients of L(R w), R the node's world rotation",
+               "lit by the light arriving at its bounding box's centre (probe_light centre) or at each vertex "
+               "(probe_light vertex) through the probe volumes, else the distant light, turned into that frame: "
+               "the coefficients of L(R w), R the node's world rotation",
 }
 
 
