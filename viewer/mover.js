@@ -2,9 +2,11 @@
 // the next; the arrow keys move it along glTF's X (Blender's X) and Z (Blender's −Y: Up moves it away from a camera
 // looking along −Z), Page Up/Down along Y (Blender's Z, up), [ and ] turn it about the vertical through its centre;
 // Shift takes a fifth of a step. A box outlines the object moved. Each object is shaded from the probes at its
-// bounding box's centre, with the light turned into its frame (probes.js), as the add-on's display shades it.
+// bounding box's centre, or at each vertex where its extras say probe_light "vertex", with the light turned into its
+// frame (probes.js), as the add-on's display shades it.
 import * as THREE from "three";
-import {lightAt, lightInFrame} from "./probes.js";
+import {lightAt, lightInFrame, vertexRadiance} from "./probes.js";
+import {RADIANCE_ATTRIBUTE, attributeName, litPerVertex} from "./prt_material.js";
 
 const TURN = 15 * Math.PI / 180;
 export const MOVES = {ArrowRight: [1, 0, 0], ArrowLeft: [-1, 0, 0], ArrowUp: [0, 0, -1], ArrowDown: [0, 0, 1],
@@ -22,6 +24,11 @@ export class Mover {
       let entry = this.objects.find((object) => object.node === node);
       if (!entry) this.objects.push(entry = {node, meshes: [], name: node.name, box: new THREE.Box3()});
       entry.meshes.push(mesh);
+      if (litPerVertex(mesh.userData.layout)) {
+        mesh.userData.rows = transferRows(mesh);
+        const count = mesh.geometry.getAttribute("position").count;
+        mesh.geometry.setAttribute(RADIANCE_ATTRIBUTE, new THREE.BufferAttribute(new Float32Array(3 * count), 3));
+      }
       mesh.geometry.computeBoundingBox();
       entry.box.union(mesh.geometry.boundingBox);  // the primitives share their node's frame
     }
@@ -74,7 +81,15 @@ export class Mover {
         const distant = totals(layout.order);
         const found = lightAt(this.volumes, centre, distant);
         this.lit.set(object.node, found.volume);
-        setLight(mesh.material, layout, lightInFrame(found.light || distant, turn));
+        if (mesh.userData.rows) {
+          const {rows, stride} = mesh.userData.rows;
+          const attribute = mesh.geometry.getAttribute(RADIANCE_ATTRIBUTE);
+          attribute.array.set(vertexRadiance(this.volumes, worldPositions(mesh), rows, stride, layout.channels,
+                                             distant, turn));
+          attribute.needsUpdate = true;
+        } else {
+          setLight(mesh.material, layout, lightInFrame(found.light || distant, turn));
+        }
       }
     }
     if (this.moving) this.outline.setFromObject(this.moving.node);
@@ -95,4 +110,39 @@ export class Mover {
     return {name: object.name, matrixWorld: object.node.matrixWorld.toArray(), centre: this.centre(object).toArray(),
             volume: volume ? volume.name : null};
   }
+}
+
+// {rows, stride}: the mesh's transfer, one row of 4·vec4s floats per vertex in its packing (its VEC4 attributes side
+// by side, or its data texture's texels at each vertex's index).
+function transferRows(mesh) {
+  const layout = mesh.userData.layout, geometry = mesh.geometry;
+  const count = geometry.getAttribute("position").count, stride = 4 * layout.vec4s;
+  const rows = new Float32Array(count * stride);
+  if (layout.layout === "texture") {
+    const texels = mesh.material.uniforms.uTransfer.value.image.data;
+    const index = geometry.getAttribute(attributeName(layout.index_attribute));
+    for (let v = 0; v < count; v++) {
+      const start = Math.round(index.getX(v)) * stride;
+      rows.set(texels.subarray(start, start + stride), v * stride);
+    }
+  } else {
+    layout.attributes.forEach((name, j) => {
+      const values = geometry.getAttribute(attributeName(name));
+      for (let v = 0; v < count; v++) {
+        for (let t = 0; t < 4; t++) rows[v * stride + 4 * j + t] = values.getComponent(v, t);
+      }
+    });
+  }
+  return {rows, stride};
+}
+
+// Float64Array(3·V): the mesh's vertices in glTF world space as it stands now.
+function worldPositions(mesh) {
+  const position = mesh.geometry.getAttribute("position"), point = new THREE.Vector3();
+  const out = new Float64Array(3 * position.count);
+  for (let v = 0; v < position.count; v++) {
+    point.fromBufferAttribute(position, v).applyMatrix4(mesh.matrixWorld);
+    out.set([point.x, point.y, point.z], 3 * v);
+  }
+  return out;
 }

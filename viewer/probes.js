@@ -1,8 +1,9 @@
 // The probe volumes of a PRT export (the scene's extras.prt.probe_volumes, docs/reference/gltf-extras.md) and the
 // light they give a dynamic object, as the add-on's display computes it: the trilinear blend of the valid probes
 // around the object's centre (core/probe_grid.py, ported line for line), Σ w_p T_p L, then turned into the object's
-// frame (blender/relighting.py light_in_frame). Plain arrays, no three.js, so node runs it in the tests.
-import {rotate} from "./sh.js";
+// frame (blender/relighting.py light_in_frame), or at each of its vertices (vertexRadiance, Blender's Probe Light
+// Per Vertex). Plain arrays, no three.js, so node runs it in the tests.
+import {bandMatrices, rotate, rotateByBands} from "./sh.js";
 
 export class ProbeVolume {
   // `volume`: one entry of probe_volumes; `matrices`: its float32 buffer view (P × C × n² × n²).
@@ -25,6 +26,20 @@ export class ProbeVolume {
     const d = point.map((v, i) => v - this.origin[i]);
     const local = this.inverse.map((row) => row[0] * d[0] + row[1] * d[1] + row[2] * d[2]);
     return local.every((v) => Math.abs(v) <= 1) ? local : null;
+  }
+
+  // Float64Array(P·3·n²): every probe's light T_p L (probe after probe, channel after channel), each channel turned
+  // by the band blocks `blocks` (sh.js bandMatrices) into an object's frame: a rotation is linear, so the blend of
+  // these is the blended light turned (blender/relighting.py dynamic_radiance).
+  turnedLights(light, blocks) {
+    const n2 = this.order * this.order, count = this.valid.length;
+    const out = new Float64Array(count * 3 * n2);
+    for (let probe = 0; probe < count; probe++) {
+      this.incoming([probe], [1], light).forEach((channel, c) => {
+        out.set(rotateByBands(channel, blocks), (probe * 3 + c) * n2);
+      });
+    }
+    return out;
   }
 
   // [3][n²]: the light arriving where the probes `indices` carry `weights`, each colour channel through its own
@@ -96,6 +111,48 @@ export function lightAt(volumes, point, light) {
   if (best === null) return {light: null, volume: null};
   const {indices, weights} = trilinearWeights(local, best.resolution, best.valid);
   return {light: best.incoming(indices, weights, light), volume: best};
+}
+
+// Float32Array(3·V): the radiance at V vertices of a dynamic object lit per vertex (blender/relighting.py
+// dynamic_radiance): each vertex, at `positions` (glTF world, 3·V floats), takes the light arriving there from the
+// distant light [3][n²], Σ w_p T_p L through the smallest volume of the light's order whose cube holds it (the
+// distant light outside every one), turned into the object's frame by `turn` (3 × 3 rows, its world rotation), and
+// shades its transfer row with it: `transfer` holds V rows of `stride` floats in the mesh's packing (channel-major;
+// `channels` 1: one transfer for every colour). The probes' lights are formed and turned once per call, so a
+// vertex costs the sum of its 8 probes' lights and one product per colour.
+export function vertexRadiance(volumes, positions, transfer, stride, channels, light, turn) {
+  const n2 = light[0].length, order = Math.round(Math.sqrt(n2));
+  const blocks = bandMatrices(order, [0, 1, 2].map((i) => [0, 1, 2].map((j) => turn[j][i])));
+  const usable = volumes.filter((volume) => volume.order === order);
+  const turned = usable.map((volume) => volume.turnedLights(light, blocks));
+  const distant = new Float64Array(3 * n2);
+  light.forEach((channel, c) => distant.set(rotateByBands(channel, blocks), c * n2));
+  const count = positions.length / 3, radiance = new Float32Array(3 * count), blended = new Float64Array(3 * n2);
+  for (let v = 0; v < count; v++) {
+    const point = [positions[3 * v], positions[3 * v + 1], positions[3 * v + 2]];
+    let best = -1, local = null;
+    usable.forEach((volume, index) => {
+      const inside = volume.local(point);
+      if (inside && (best < 0 || volume.size < usable[best].size)) [best, local] = [index, inside];
+    });
+    let arriving = distant;
+    if (best >= 0) {
+      const {indices, weights} = trilinearWeights(local, usable[best].resolution, usable[best].valid);
+      blended.fill(0);
+      indices.forEach((probe, q) => {
+        const w = weights[q], start = probe * 3 * n2;
+        if (w !== 0) for (let i = 0; i < 3 * n2; i++) blended[i] += w * turned[best][start + i];
+      });
+      arriving = blended;
+    }
+    for (let c = 0; c < 3; c++) {
+      const row = v * stride + (channels === 1 ? 0 : c * n2);
+      let sum = 0;
+      for (let i = 0; i < n2; i++) sum += transfer[row + i] * arriving[c * n2 + i];
+      radiance[3 * v + c] = sum;
+    }
+  }
+  return radiance;
 }
 
 // The light [3][n²] (glTF world) as an object turned by `turn` (3 × 3 rows, its world rotation) sees it in its own

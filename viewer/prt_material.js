@@ -1,10 +1,18 @@
 // The PRT shader for a mesh exported by PRT for Blender (`prt export --gltf`), reusable on its own: each vertex forms
 // Σ_k L_k T_k from its transfer (VEC4 attributes, or texels of a float data texture indexed by _PRT_INDEX) and the
 // light's SH coefficients, which the CPU sums and turns (lights.js); the fragment multiplies by the albedo texture
-// and encodes sRGB. uMode 1 is local Blinn-Phong lighting by the same suns, for comparison (SHDemo's F1).
+// and encodes sRGB. uMode 1 is local Blinn-Phong lighting by the same suns, for comparison (SHDemo's F1). A dynamic
+// object lit per vertex (extras.prt.probe_light "vertex") reads its radiance from RADIANCE_ATTRIBUTE instead, which
+// the CPU forms from the probes (probes.js vertexRadiance): each vertex has a light of its own.
 import * as THREE from "three";
 
 export const MAX_SUNS = 8;
+export const RADIANCE_ATTRIBUTE = "prt_radiance";
+
+// Whether the mesh (its extras.prt) is a dynamic object lit per vertex through the probes.
+export function litPerVertex(layout) {
+  return Boolean(layout.dynamic) && layout.probe_light === "vertex";
+}
 
 // The mesh's extras.prt (order, channels, vec4s, layout, attributes | texture) → a ShaderMaterial. `map`: the albedo
 // texture or null; `transfer`: the DataTexture of a texture layout.
@@ -46,7 +54,10 @@ function vertexShader(layout) {
   const accumulate = (t) => `radiance += vec3(dot(${t}, uLight[j]), dot(${t}, uLight[${vec4s} + j]), ` +
     `dot(${t}, uLight[${2 * vec4s} + j]));`;
   let declarations, body;
-  if (layout.layout === "texture") {
+  if (litPerVertex(layout)) {
+    declarations = `attribute vec3 ${RADIANCE_ATTRIBUTE};`;
+    body = `radiance = ${RADIANCE_ATTRIBUTE};`;
+  } else if (layout.layout === "texture") {
     const width = layout.texture.width;
     declarations = `attribute float ${attributeName(layout.index_attribute)};\nuniform highp sampler2D uTransfer;`;
     body = `int base = int(${attributeName(layout.index_attribute)} + 0.5) * ${vec4s};

@@ -60,9 +60,13 @@ export function bandMatrices(order, R) {
 
 // Coefficients of f(Rᵀω) from those of f (rotation.rotate): a lobe at d ends up at R·d.
 export function rotate(coefficients, R) {
-  const order = Math.round(Math.sqrt(coefficients.length));
+  return rotateByBands(coefficients, bandMatrices(Math.round(Math.sqrt(coefficients.length)), R));
+}
+
+// rotate() with the rotation's band blocks (bandMatrices) made once, for many coefficient vectors.
+export function rotateByBands(coefficients, blocks) {
   const rotated = new Float64Array(coefficients.length);
-  bandMatrices(order, R).forEach((block, l) => {
+  blocks.forEach((block, l) => {
     const start = l * l;
     for (let i = 0; i < block.length; i++) {
       let sum = 0;
