@@ -16,9 +16,10 @@ import pytest
 
 from conftest import ROOT
 from gltf_files import accessor, exported, light_from_extras, read_glb
-from test_gltf_probes import (ORDER, START, browser, compare, node_matrix, probe_file, probe_glb, suzannes_colours,
-                              view_floats, viewer_matrix)
+from test_gltf_probes import (ORDER, START, TO_GLTF, browser, compare, node_matrix, probe_file, probe_glb,
+                              suzannes_colours, view_floats, viewer_matrix)
 from browser import open_viewer, viewer_state
+from prt_addon.blender import probe_volumes
 from prt_addon.commands.view import VIEWER, address, start_server, stop_server
 from prt_addon.core import probe_grid, rotation, shading
 
@@ -125,7 +126,9 @@ def test_the_viewer_lights_the_dynamic_object_per_vertex_as_blender(vertex_file,
     server = start_server(VIEWER, str(vertex_glb))
     try:
         page = open_viewer(browser, f"{address(server)}?textures=0&readout=0&outline=0", (320, 240))
-        assert viewer_state(page)["moving"]["volume"] == "PRT Probe Volume"
+        state = viewer_state(page)
+        assert state["moving"]["volume"] == "PRT Probe Volume"
+        assert "lit per vertex by the probes of PRT Probe Volume" in state["readout"]
         before = compare(vertex_file, page, tmp_path, "start", viewer_matrix(page))
         for key in ["ArrowRight"] * 3 + ["BracketLeft"] * 3 + ["PageUp"]:
             page.keyboard.press(key)
@@ -136,3 +139,18 @@ def test_the_viewer_lights_the_dynamic_object_per_vertex_as_blender(vertex_file,
         assert after > 1.2 * before  # out of the wall's shadow
     finally:
         stop_server(server)
+
+
+def test_a_volume_moved_since_its_bake_is_exported_where_it_was_baked_with_a_note(vertex_file, prt, tmp_path):
+    """As the display lights from it: its probes where they were baked."""
+    bpy.ops.wm.open_mainfile(filepath=str(vertex_file))
+    volume = bpy.data.objects["PRT Probe Volume"]
+    baked = np.reshape(volume[probe_volumes.METADATA_KEY]["placement"], (4, 4))
+    volume.location.x += 1.0
+    bpy.context.view_layer.update()
+    done = prt.gltf.export(bpy.context.scene, str(tmp_path / "moved.glb"), "web")
+    assert "probe volume 'PRT Probe Volume': moved or scaled since its bake; exported where it was baked" in \
+        done["notes"]
+    document, _ = read_glb(tmp_path / "moved.glb")
+    exported_at = document["scenes"][0]["extras"]["prt"]["probe_volumes"][0]["placement"]
+    np.testing.assert_allclose(np.reshape(exported_at, (4, 4)), TO_GLTF @ baked, atol=1e-12)

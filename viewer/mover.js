@@ -99,8 +99,9 @@ export class Mover {
     const object = this.moving;
     if (!object) return null;
     const volume = this.lit.get(object.node);
+    const where = object.meshes.some((mesh) => mesh.userData.rows) ? "per vertex" : "at its centre";
     return `Moving ${object.name} (Tab ${this.active + 1}/${this.objects.length}; arrows, PgUp/PgDn, [ ]) · ` +
-      `lit by ${volume ? `the probes of ${volume.name}` : "the distant light"}`;
+      `lit ${where} by ${volume ? `the probes of ${volume.name}` : "the distant light"}`;
   }
 
   state() {

@@ -26,6 +26,7 @@ import numpy as np
 from ..core import glb, gltf_pack, gltf_probes, lights as core_lights, outputs, shading
 from ..core.errors import InputError, StaleBake
 from . import display, layouts, materials, probe_volumes, relighting, storage
+from .fingerprint import placement_changes
 from .lights import scene_lights
 
 COPY_PREFIX = "PRT glTF "  # names of the temporary copies; taken off again in the file
@@ -103,6 +104,9 @@ def _probe_volumes(scene):
         except StaleBake as problem:
             notes.append(f"{problem}: not exported")
             continue
+        moved = placement_changes(ob)
+        if moved:  # as the display says it: the probes go where they were baked
+            notes.append(f"probe volume {ob.name!r}: {', '.join(moved)} since its bake; exported where it was baked")
         meta = ob[probe_volumes.METADATA_KEY]
         bake = {key: meta[key] for key in ("layout", "mode", "samples", "rays", "seed", "est_max_error", "date",
                                            "bake_id")}
