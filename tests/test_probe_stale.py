@@ -204,3 +204,18 @@ def test_cli_stale_only_rebakes_a_moved_volume_alone_then_nothing(scene, tmp_pat
     assert result.returncode == 0, result.stderr
     assert "PRT bake stale: nothing to rebake, 3 objects and 2 probe volumes up to date" in result.stdout
     assert path.read_bytes() == baked
+
+
+def test_bake_stale_rebakes_a_stale_dynamic_object_and_a_moved_volume_together(scene):
+    """The dynamic object bakes alone, in its own frame; the volume with the static scene, which stays as it was."""
+    floor, wall, sphere, first, second = scene
+    static = {ob.name: stored(ob) for ob in (floor, wall)}
+    kept, dynamic_id = probes_stored(second), stored(sphere)[1]["bake_id"]
+    sphere.data.vertices[0].co.z += 0.05  # its own geometry: a dynamic object's only stale part but settings
+    first.location.z += 0.2
+    assert fingerprint.stale_receivers(bpy.context, bpy.context.scene.prt_bake.to_settings())[sphere.name] == [
+        "geometry changed"]
+    assert bpy.ops.prt.bake_stale() == {"FINISHED"}
+    assert stale() == {first.name: [], second.name: []}
+    assert stored(sphere)[1]["bake_id"] != dynamic_id
+    assert {ob.name: stored(ob) for ob in (floor, wall)} == static and probes_stored(second) == kept

@@ -95,19 +95,19 @@ def read_request(context, settings: bake.BakeSettings, object_names=None, storag
     everyone = request.receivers
     dynamic = [geometry.is_dynamic(ob) for ob in objects]
     request.receivers = [receiver for receiver, own in zip(everyone, dynamic) if not own]
-    if request.receivers or only_volumes:
+    if request.receivers or volume_names:  # a stale-only bake's volumes are baked with the static scene
         _gather_scene(request, context, depsgraph)
         _gather_probe_volumes(request, context, depsgraph, volume_names)
-        if not request.receivers and not request.probe_volumes:
-            raise InputError("nothing to bake: " + ("; ".join(request.problems + request.notes)
-                                                    or "no visible probe volume"))
+    if not (request.receivers or request.probe_volumes or any(dynamic)):
+        raise InputError("nothing to bake: " + ("; ".join(request.problems + request.notes)
+                                                or "no visible probe volume"))
     for ob, receiver in zip(objects, everyone):
         if receiver.options.storage != "vertex":
             receiver.texels = texel_bake.texel_input(ob, receiver.surface, depsgraph, receiver.options)
         if settings.mode != "unshadowed":
             receiver.subsurface = materials.subsurface_material(ob)
     parts = [_alone(request, receiver) for receiver, own in zip(everyone, dynamic) if own]
-    if not request.receivers and parts:  # dynamic receivers only: the first is the bake, the others its parts
+    if not request.receivers and not request.probe_volumes:  # dynamic receivers only: the first, then the others
         return replace(parts[0], problems=request.problems, notes=request.notes, parts=parts[1:])
     request.parts = parts
     return request
