@@ -9,9 +9,10 @@ Stored on the Empty, as custom properties saved in the .blend with it:
 - `_prt_probe_valid`: int array (P,), 0 for a probe inside static geometry (left out of the interpolation);
 - `prt_probes` (a group): layout (PROBE_LAYOUT), order, channels, resolution, placement (where the probes were
   baked: the matrix taking core.probe_grid's cube [−1, 1]³ to world space, the display size included, 16 floats by
-  rows; moving the Empty afterwards does not move them), mode, samples, rays, seed, inside_probes, est_max_error
-  (the largest probe's standard error, Frobenius norm), date, bake_id, fingerprint (what the probes depend on, a
-  group of digests: blender.fingerprint.volume_fingerprints, so a check can tell stale probes).
+  rows; moving the Empty afterwards does not move them, but makes them stale), mode, samples, rays, seed,
+  inside_probes, est_max_error (the largest probe's standard error, Frobenius norm), date, bake_id, fingerprint
+  (what the probes depend on, a group of digests: blender.fingerprint.volume_fingerprints, so a check can tell
+  stale probes).
 An Empty has no mesh whose attributes could hold them; ID property arrays are saved, duplicated and deleted with the
 object, and read back through the buffer protocol at once (a million floats in milliseconds).
 """
