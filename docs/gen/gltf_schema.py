@@ -44,6 +44,9 @@ CHANNELS = {"enum": [1, 3], "description": "1: grey transfer, one set for every 
 VEC4S = _integer(1, None, "VEC4s per shading point: channels × n² floats, zero-padded to whole VEC4s")
 DYNAMIC = {"const": True, "description": "present on a dynamic object's mesh: its transfer is in its node's own "
                                          "frame (see the convention's `dynamic`)"}
+PROBE_LIGHT = {"enum": ["vertex", "centre"], "description": "on a dynamic object's mesh: where it takes the probes' "
+                                                           "light, at each vertex or at its bounding box's centre "
+                                                           "(see the convention's `dynamic`)"}
 ATTRIBUTE_NAME = "^(" + "|".join(sorted({re.escape(profile.attribute_name.replace("{}", ""))
                                          for profile in gltf_pack.PROFILES.values()})) + ")(0|[1-9][0-9]*)$"
 WINDOWS = [identifier for identifier, _, _ in saved.WINDOWS if identifier != "auto"] + ["tapered"]
@@ -52,9 +55,9 @@ WINDOWS = [identifier for identifier, _, _ in saved.WINDOWS if identifier != "au
 def _mesh(layout, description, required, properties, optional=()):
     common = {"order": ORDER, "channels": CHANNELS, "vec4s": VEC4S,
               "layout": {"const": layout, "description": "how the transfer is stored: " + description},
-              "dynamic": DYNAMIC}
+              "dynamic": DYNAMIC, "probe_light": PROBE_LIGHT}
     return _closed(["order", "channels", "vec4s", "layout", *required], {**common, **properties},
-                   f"A mesh whose transfer is {description}.", ["dynamic", *optional])
+                   f"A mesh whose transfer is {description}.", ["dynamic", "probe_light", *optional])
 
 
 MESH_LAYOUTS = {

@@ -59,6 +59,7 @@ PROBES = {
     "samples": "rays per probe asked for", "rays": "rays cast per probe", "seed": "the random seed",
     "inside_probes": "probes inside geometry, left out", "est_max_error": "the largest estimated error of a probe",
     "date": "when it was baked (ISO 8601, UTC)", "bake_id": "32 hex digits telling two bakes apart",
+    "fingerprint": "32-digit hex digests of what the probes depended on: a `--stale-only` rebake compares them",
 }
 INTRO = f"""\
 A bake is stored in the `.blend` file itself, on each receiver's mesh: Blender attributes that hold the transfer,
