@@ -23,9 +23,19 @@ export class ProbeVolume {
 
   // The point (glTF world) in the cube's frame, or null outside the cube.
   local(point) {
-    const d = point.map((v, i) => v - this.origin[i]);
-    const local = this.inverse.map((row) => row[0] * d[0] + row[1] * d[1] + row[2] * d[2]);
-    return local.every((v) => Math.abs(v) <= 1) ? local : null;
+    const local = [0, 0, 0];
+    return this.localInto(point[0], point[1], point[2], local) ? local : null;
+  }
+
+  // Writes the point (x, y, z) in the cube's frame into `out` (3 numbers); whether the cube holds it. Allocates
+  // nothing: vertexRadiance calls it for every vertex.
+  localInto(x, y, z, out) {
+    const dx = x - this.origin[0], dy = y - this.origin[1], dz = z - this.origin[2];
+    for (let i = 0; i < 3; i++) {
+      const row = this.inverse[i];
+      out[i] = row[0] * dx + row[1] * dy + row[2] * dz;
+    }
+    return Math.abs(out[0]) <= 1 && Math.abs(out[1]) <= 1 && Math.abs(out[2]) <= 1;
   }
 
   // Float64Array(P·3·n²): every probe's light T_p L (probe after probe, channel after channel), each channel turned
@@ -76,27 +86,35 @@ export async function loadVolumes(extras, parser) {
 // {indices, weights} of the 8 probes of the cell around `local` (the cube's frame), trilinear, over the valid ones
 // only and rescaled to sum to 1 (all zero where none is valid); a point beyond the probes' lattice is clamped onto it.
 export function trilinearWeights(local, resolution, valid) {
-  const low = [], fraction = [];
+  const indices = new Array(8), weights = new Array(8);
+  fillTrilinear(local, resolution, valid, indices, weights);
+  return {indices, weights};
+}
+
+// trilinearWeights into `indices` and `weights` (8 each, corners x slowest), allocating nothing.
+const LOW = new Int32Array(3), FRACTION = new Float64Array(3), STRIDES = new Int32Array(3);
+function fillTrilinear(local, resolution, valid, indices, weights) {
+  STRIDES[0] = resolution[1] * resolution[2], STRIDES[1] = resolution[2], STRIDES[2] = 1;
+  let base = 0, total = 0;
   for (let axis = 0; axis < 3; axis++) {
     const n = resolution[axis];
     const grid = Math.min(Math.max((local[axis] + 1) * n / 2 - 0.5, 0), n - 1);
-    low.push(Math.min(Math.floor(grid), Math.max(n - 2, 0)));
-    fraction.push(grid - low[axis]);
+    LOW[axis] = Math.min(Math.floor(grid), Math.max(n - 2, 0));
+    FRACTION[axis] = grid - LOW[axis];
+    base += LOW[axis] * STRIDES[axis];
   }
-  const indices = [], weights = [];
-  for (const a of [0, 1]) {
-    for (const b of [0, 1]) {
-      for (const c of [0, 1]) {
-        const cell = [a, b, c].map((step, axis) => Math.min(low[axis] + step, resolution[axis] - 1));
-        const index = (cell[0] * resolution[1] + cell[1]) * resolution[2] + cell[2];
-        const weight = [a, b, c].reduce((w, step, axis) => w * (step ? fraction[axis] : 1 - fraction[axis]), 1);
-        indices.push(index);
-        weights.push(valid[index] ? weight : 0);
-      }
+  for (let corner = 0; corner < 8; corner++) {
+    let index = base, weight = 1;
+    for (let axis = 0; axis < 3; axis++) {
+      const step = (corner >> (2 - axis)) & 1;  // an axis of one probe repeats it, with weight 0 on the repeat
+      if (step && LOW[axis] + 1 < resolution[axis]) index += STRIDES[axis];
+      weight *= step ? FRACTION[axis] : 1 - FRACTION[axis];
     }
+    indices[corner] = index;
+    weights[corner] = valid[index] ? weight : 0;
+    total += weights[corner];
   }
-  const total = weights.reduce((sum, w) => sum + w, 0);
-  return {indices, weights: total > 0 ? weights.map((w) => w / total) : weights};
+  if (total > 0) for (let corner = 0; corner < 8; corner++) weights[corner] /= total;
 }
 
 // {light, volume}: what arrives at `point` (glTF world) from the distant light [3][n²] through the smallest volume
@@ -128,21 +146,25 @@ export function vertexRadiance(volumes, positions, transfer, stride, channels, l
   const distant = new Float64Array(3 * n2);
   light.forEach((channel, c) => distant.set(rotateByBands(channel, blocks), c * n2));
   const count = positions.length / 3, radiance = new Float32Array(3 * count), blended = new Float64Array(3 * n2);
+  const local = [0, 0, 0], mine = [0, 0, 0], indices = new Array(8), weights = new Array(8);
   for (let v = 0; v < count; v++) {
-    const point = [positions[3 * v], positions[3 * v + 1], positions[3 * v + 2]];
-    let best = -1, local = null;
-    usable.forEach((volume, index) => {
-      const inside = volume.local(point);
-      if (inside && (best < 0 || volume.size < usable[best].size)) [best, local] = [index, inside];
-    });
+    const x = positions[3 * v], y = positions[3 * v + 1], z = positions[3 * v + 2];
+    let best = -1;
+    for (let index = 0; index < usable.length; index++) {
+      if (usable[index].localInto(x, y, z, mine) && (best < 0 || usable[index].size < usable[best].size)) {
+        best = index;
+        local[0] = mine[0], local[1] = mine[1], local[2] = mine[2];
+      }
+    }
     let arriving = distant;
     if (best >= 0) {
-      const {indices, weights} = trilinearWeights(local, usable[best].resolution, usable[best].valid);
+      fillTrilinear(local, usable[best].resolution, usable[best].valid, indices, weights);
       blended.fill(0);
-      indices.forEach((probe, q) => {
-        const w = weights[q], start = probe * 3 * n2;
-        if (w !== 0) for (let i = 0; i < 3 * n2; i++) blended[i] += w * turned[best][start + i];
-      });
+      const lights = turned[best];
+      for (let q = 0; q < 8; q++) {
+        const w = weights[q], start = indices[q] * 3 * n2;
+        if (w !== 0) for (let i = 0; i < 3 * n2; i++) blended[i] += w * lights[start + i];
+      }
       arriving = blended;
     }
     for (let c = 0; c < 3; c++) {
