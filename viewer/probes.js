@@ -38,16 +38,34 @@ export class ProbeVolume {
     return Math.abs(out[0]) <= 1 && Math.abs(out[1]) <= 1 && Math.abs(out[2]) <= 1;
   }
 
-  // Float64Array(P·3·n²): every probe's light T_p L (probe after probe, channel after channel), each channel turned
-  // by the band blocks `blocks` (sh.js bandMatrices) into an object's frame: a rotation is linear, so the blend of
-  // these is the blended light turned (blender/relighting.py dynamic_radiance).
-  turnedLights(light, blocks) {
-    const n2 = this.order * this.order, count = this.valid.length;
-    const out = new Float64Array(count * 3 * n2);
+  // Float64Array(P·3·n²): every probe's light T_p L (probe after probe, channel after channel) under the distant
+  // light [3][n²], kept for the last light (probe_volumes.lights): a light change costs one product per probe, a
+  // moving object none.
+  probeLights(light) {
+    const n2 = this.order * this.order, count = this.valid.length, key = light.map((c) => Array.from(c)).join();
+    if (this.lastLight && this.lastLight.key === key) return this.lastLight.lights;
+    const lights = new Float64Array(count * 3 * n2);
     for (let probe = 0; probe < count; probe++) {
-      this.incoming([probe], [1], light).forEach((channel, c) => {
-        out.set(rotateByBands(channel, blocks), (probe * 3 + c) * n2);
-      });
+      for (let c = 0; c < 3; c++) {
+        const start = (probe * this.channels + (this.channels === 1 ? 0 : c)) * n2 * n2, row = (probe * 3 + c) * n2;
+        for (let i = 0; i < n2; i++) {
+          let sum = 0;
+          for (let j = 0; j < n2; j++) sum += this.matrices[start + i * n2 + j] * light[c][j];
+          lights[row + i] = sum;
+        }
+      }
+    }
+    this.lastLight = {key, lights};
+    return lights;
+  }
+
+  // probeLights turned into an object's frame by the band blocks `blocks` (sh.js bandMatrices): a rotation is
+  // linear, so the blend of these is the blended light turned (blender/relighting.py dynamic_radiance).
+  turnedLights(light, blocks) {
+    const lights = this.probeLights(light), n2 = this.order * this.order;
+    const out = new Float64Array(lights.length);
+    for (let row = 0; row < lights.length; row += n2) {
+      out.set(rotateByBands(lights.subarray(row, row + n2), blocks), row);
     }
     return out;
   }
