@@ -13,7 +13,7 @@ Goals: every asset RMS ≤ 2 % and p99 ≤ 10 % against Cycles; the demo scene R
 within 1/1.5..1.5 for every case.
 
 Run from the repository root:  .venv/bin/python benchmarks/assets.py [--quick] [--samples N] [--passes N]
-                                   [--cases a,b] [--reference-points N] [--workers N] [--json PATH]
+                                   [--cases a,b] [--reference-points N] [--workers N] [--json [DIR]]
 """
 
 import argparse
@@ -29,11 +29,13 @@ sys.path.insert(0, ROOT)
 import bpy  # noqa: E402  (bpy before mathutils, which the add-on imports)
 import numpy as np  # noqa: E402
 
+from benchmarks import results as result_files  # noqa: E402
+from benchmarks.asset_goals import DEMO, goal_lines, goals, missed_goals  # noqa: E402
 from benchmarks.bake import Picks, bake_picks  # noqa: E402
 from benchmarks.convergence import REFERENCE_FACTOR, REFERENCE_SEED_OFFSET, coefficient_error  # noqa: E402
 from prt_addon.blender import geometry, mesh_arrays, sample_scenes, schema, storage, validation  # noqa: E402
 from prt_addon.blender.scene_bake import SceneBake  # noqa: E402
-from prt_addon.commands.common import schema_registered, write_json  # noqa: E402
+from prt_addon.commands.common import schema_registered  # noqa: E402
 from prt_addon.core import lights  # noqa: E402
 from prt_addon.core.bake import BakeSettings  # noqa: E402
 from prt_addon.core.statistics import compare, rms  # noqa: E402
@@ -44,17 +46,9 @@ FLOOR_SIZE = 6.0    # the floor's side: 3 × the asset
 FLOOR_QUADS = 3     # per side: a plane of a few quads
 LOW_SUN_THETA = math.radians(75.0)  # the spheres' sun, low over the horizon: a long terminator
 PICK_SEED = 20260601                # which points the reference bakes; fixed so runs compare
-DEMO = "demo"
 CONTACT = 1e-5          # of the asset's size: a point this close to z = 0 lies on the floor
 CONTACT_NORMAL_Z = 1e-3  # and faces into it when its normal's z is below minus this
 EXACT = 1e-5            # an actual error this small beside a zero estimate: both exact (float32 storage)
-
-GOALS = {  # name: (what, bound)
-    "asset_rms": ("RMS ≤ 2 % against Cycles, every asset", 0.02),
-    "asset_p99": ("p99 ≤ 10 % against Cycles, every asset", 0.10),
-    "demo_rms": ("RMS ≤ 1 % against Cycles, the demo scene", 0.01),
-    "honest": ("actual ÷ estimated error within 1/1.5..1.5, every case", 1.5),
-}
 
 
 # -- building the cases ------------------------------------------------------------------------------------------
@@ -399,7 +393,7 @@ def measure(case: Case, settings: Settings, log=print) -> tuple:
               off_floor.error, off_floor.p99, int(apart.sum()),
               0.0 if whole is None else rms(whole.errors[apart]), compared["rel_rms_error"],
               compared["rel_p99_error"])
-    row.goals_missed = missed_goals(case, row)
+    row.goals_missed = missed_goals(row)
     return row, check, touching
 
 
@@ -428,22 +422,6 @@ def smooth_normal_errors(name: str, check, touching, settings: Settings) -> dict
 
 
 # -- goals and the table -----------------------------------------------------------------------------------------
-def missed_goals(case: Case, row: Row) -> list:
-    missed = []
-    if case.name == DEMO:
-        if not row.rel_rms_error <= GOALS["demo_rms"][1]:
-            missed.append("RMS")
-    else:
-        if not row.rel_rms_error <= GOALS["asset_rms"][1]:
-            missed.append("RMS")
-        if not row.rel_p99_error <= GOALS["asset_p99"][1]:
-            missed.append("p99")
-    bound = GOALS["honest"][1]
-    if not 1.0 / bound <= row.honesty <= bound:
-        missed.append("estimate")
-    return missed
-
-
 COLUMNS = [  # header, width, format of a row
     ("case", 17, lambda r: r.case),
     ("vertices", 8, lambda r: f"{r.vertices}"),
@@ -469,31 +447,6 @@ def table(rows) -> list[str]:
                                                            for row in rows]
 
 
-def goal_lines(rows) -> list[str]:
-    assets = [row for row in rows if row.case != DEMO]
-    demo = [row for row in rows if row.case == DEMO]
-    checks = {
-        "asset_rms": [(r.case, r.rel_rms_error, f"{100 * r.rel_rms_error:.2f} %") for r in assets
-                      if not r.rel_rms_error <= GOALS["asset_rms"][1]],
-        "asset_p99": [(r.case, r.rel_p99_error, f"{100 * r.rel_p99_error:.1f} %") for r in assets
-                      if not r.rel_p99_error <= GOALS["asset_p99"][1]],
-        "demo_rms": [(r.case, r.rel_rms_error, f"{100 * r.rel_rms_error:.2f} %") for r in demo
-                     if not r.rel_rms_error <= GOALS["demo_rms"][1]],
-        "honest": [(r.case, r.honesty, "exact, but the reference differs" if r.est_at_reference == 0
-                    else f"{r.honesty:.2f}") for r in rows
-                   if not 1 / GOALS["honest"][1] <= r.honesty <= GOALS["honest"][1]],
-    }
-    present = {"asset_rms": assets, "asset_p99": assets, "demo_rms": demo, "honest": rows}
-    lines = []
-    for key, (what, _) in GOALS.items():
-        if not present[key]:
-            continue
-        misses = checks[key]
-        verdict = "PASS" if not misses else "MISS: " + ", ".join(f"{name} {text}" for name, _, text in misses)
-        lines.append(f"goal {what}: {verdict}")
-    return lines
-
-
 # -- the run -----------------------------------------------------------------------------------------------------
 def cycles_arguments(parser, quick_samples: int, quick_passes: int):
     """--samples and --passes of the Cycles renders a benchmark compares with, and what --quick makes them."""
@@ -513,7 +466,7 @@ def build_parser(cases):
     parser.add_argument("--reference-points", type=int, default=Settings.reference_points,
                         help="shading points per case the reference bake bakes (default %(default)s)")
     parser.add_argument("--workers", type=int, default=1, help="bake workers (default 1, the add-on's default)")
-    parser.add_argument("--json", help="also write the rows as JSON here")
+    result_files.add_argument(parser)
     return parser
 
 
@@ -521,7 +474,9 @@ def main(argv=None, catalogue=CASES, title="assets", diagnose=None) -> int:
     """Runs the catalogue's cases (all, --quick's small ones, or --cases) and prints the table and the goals.
     diagnose(names, check) → dict, when given, looks into each case after it is measured: its "line" is printed
     after the table, the dict goes into the JSON."""
-    args = build_parser(catalogue).parse_args(argv)
+    parser = build_parser(catalogue)
+    args = parser.parse_args(argv)
+    result_files.check_folder(parser, args)
     names = [case.name for case in catalogue]
     settings = Settings(bake_samples=64 if args.quick else 256,
                         cycles_samples=args.samples or (16 if args.quick else validation.DEFAULT_SAMPLES),
@@ -581,15 +536,15 @@ def main(argv=None, catalogue=CASES, title="assets", diagnose=None) -> int:
               f"floor {100 * errors['smooth_normals_off_floor']:.1f} % (per corner "
               f"{100 * errors['per_corner_off_floor']:.2f} %)")
     print()
+    judged = goals(rows)
     for line in goal_lines(rows):
         print(line)
     print(f"total {total / 60:.1f} min")
     if args.json:
-        write_json(args.json, {"settings": {**asdict(settings), "reference_samples": settings.reference_samples,
-                                            "quick": args.quick},
-                               "rows": [{**asdict(row), "actual_to_estimate": row.honesty} for row in rows],
-                               "goals": goal_lines(rows), **extra, "total_s": total})
-        print(f"wrote {os.path.abspath(args.json)}")
+        result_files.write(title.replace(" ", "_"), args, {
+            "settings": {**asdict(settings), "reference_samples": settings.reference_samples},
+            "rows": [{**asdict(row), "actual_to_estimate": row.honesty} for row in rows], **extra, "total_s": total},
+            judged, argv)
     return 0
 
 

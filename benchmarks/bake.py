@@ -6,14 +6,13 @@
 3. The demo bake at order 4, shadowed, target error 0.01, 2 workers: wall time and actual error.
 4. Workers: 2 workers ÷ 1 worker wall time, and bit-identical results.
 
-Run from the repository root:  .venv/bin/python benchmarks/bake.py [--quick] [--json PATH]
+Run from the repository root:  .venv/bin/python benchmarks/bake.py [--quick] [--json [DIR]]
 """
 
 import argparse
 import copy
 import gc
 from dataclasses import dataclass
-import json
 import os
 import subprocess
 import sys
@@ -25,6 +24,7 @@ sys.path.insert(0, ROOT)
 import bpy  # noqa: E402  (bpy before mathutils, which the core imports)
 import numpy as np  # noqa: E402
 
+from benchmarks import results as result_files  # noqa: E402
 from prt_addon.blender import sample_scenes  # noqa: E402
 from prt_addon.blender.execute import local_executor  # noqa: E402
 from prt_addon.blender.plan import plan_bake  # noqa: E402
@@ -402,9 +402,7 @@ def workers_benchmark(config):
 
 # -- printing ---------------------------------------------------------------------------------------------
 def verdict(key, value):
-    relation, goal = GOALS[key]
-    met = {"<=": value <= goal, ">=": value >= goal, "==": value == goal}[relation]
-    return "PASS" if met else "MISS"
+    return result_files.verdict(value, *GOALS[key])
 
 
 def goal_text(key):
@@ -494,18 +492,13 @@ def print_summary(results, quick):
         print(f"   {label:<38}{shown:>10}  {goal_text(key):<10}{verdict(key, value)}")
 
 
-def write_json(path, results):
-    os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
-    with open(path, "w", encoding="utf-8") as handle:
-        json.dump(results, handle, indent=2, default=lambda v: v.item() if hasattr(v, "item") else str(v))
-
-
 # -- main -------------------------------------------------------------------------------------------------
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="shrink everything for a smoke run")
-    parser.add_argument("--json", metavar="PATH", help="also write the numbers as JSON")
+    result_files.add_argument(parser)
     args = parser.parse_args(argv)
+    result_files.check_folder(parser, args)
     config = QUICK if args.quick else FULL
     started = time.perf_counter()
     print(f"bake benchmarks{' (quick)' if args.quick else ''}: bpy {bpy.app.version_string}, "
@@ -539,8 +532,8 @@ def main(argv=None):
     print_summary(results, args.quick)
     print(f"\n(total {time.perf_counter() - started:.0f} s)")
     if args.json:
-        write_json(args.json, results)
-        print(f"wrote {args.json}")
+        goals = [result_files.goal(label, value, *GOALS[key]) for label, key, value in summary_rows(results)]
+        result_files.write("bake", args, results, goals, argv)
     return 0
 
 

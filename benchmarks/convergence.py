@@ -3,7 +3,7 @@ actual error, as a CSV and a log-log plot against bake time.
 
     .venv/bin/python benchmarks/convergence.py FILE [--samples 16,32,...] [--objects A,B] [--object NAME] [--order 4]
         [--reference bake|cycles] [--reference-samples N] [--workers N] [--seed 0]
-        [--csv convergence.csv] [--plot convergence.png] [--quick]
+        [--csv convergence.csv] [--plot convergence.png] [--json [DIR]] [--quick]
 
 The reference is, by default, a bake at 16 × the largest count with another seed. The actual error is then in the
 estimate's own measure, RMS over vertices of ‖T − T_ref‖ ÷ ‖T_unshadowed‖, so the two curves say directly whether
@@ -18,13 +18,14 @@ the estimate, which covers any light.
 
 import argparse
 import csv
-from dataclasses import astuple, dataclass, fields
+from dataclasses import asdict, astuple, dataclass, fields
 import os
 import sys
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 import bpy  # noqa: E402  (before mathutils, which the add-on imports)
+from benchmarks import results as result_files  # noqa: E402
 from matplotlib.backends.backend_agg import FigureCanvasAgg  # noqa: E402
 from matplotlib.figure import Figure  # noqa: E402
 from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter  # noqa: E402
@@ -262,11 +263,14 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--plot", default="convergence.png", help="where to write the log-log plot")
     parser.add_argument("--quick", action="store_true", help=f"a smoke run: --samples "
                         f"{','.join(map(str, QUICK_SAMPLES))} --reference-samples {QUICK_REFERENCE_SAMPLES}")
+    result_files.add_argument(parser)
     return parser
 
 
 def main(argv=None) -> int:
-    args = build_parser().parse_args(argv)
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    result_files.check_folder(parser, args)
     args.samples = args.samples or (QUICK_SAMPLES if args.quick else DEFAULT_SAMPLES)
     if args.quick and args.reference == "bake":
         args.reference_samples = args.reference_samples or QUICK_REFERENCE_SAMPLES
@@ -287,6 +291,9 @@ def main(argv=None) -> int:
     write_plot(args.plot, rows, f"PRT error against bake time: {os.path.basename(args.file)}",
                study.reference_text())
     print(f"wrote {os.path.abspath(args.csv)} and {os.path.abspath(args.plot)}")
+    if args.json:  # no goal: the evidence that the estimate is honest is the rows themselves
+        result_files.write("convergence", args, {"reference": study.reference_line(),
+                                                 "rows": [asdict(row) for row in rows]}, [], argv)
     return 0
 
 

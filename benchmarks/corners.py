@@ -1,14 +1,15 @@
 """What shading-aware transfer costs, measured side by side in one run.
 
     .venv/bin/python benchmarks/corners.py [--asset ../shared/assets/cow.obj] [--against REV] [--repeats 3]
-        [--bakes 3] [--json PATH] [--quick]
+        [--bakes 3] [--json [DIR]] [--quick]
 
 1. Flat ÷ smooth at equal estimated error: the asset imported as a user would (OBJ without normals: flat-shaded)
    and the same mesh after Shade Smooth. The smooth mesh bakes shadowed at the defaults (order 4, 256 samples);
    the flat one at the fewest samples (a multiple of the replicates) whose estimated RMS error is at most the
    smooth bake's, found by baking it. Goal ≤ 1.5 (issue #13). Also printed: both at 256 samples, and that ratio
-   scaled by (est. flat ÷ est. smooth)^(1/0.79) as earlier versions of this benchmark judged it, which scales the
-   work that does not grow with the samples (gathering the scene, the contact search) as if it did.
+   scaled by (est. flat ÷ est. smooth)^(1/0.79), the convergence rate's prediction from one pair, which is not
+   judged: it scales the work that does not grow with the samples (gathering the scene, the contact search) as if
+   it did.
 2. A smooth mesh before and after: the same smooth bake with this checkout and with revision REV (default: the
    commit before shading-aware transfer). Goal within 5 %.
 Both sides bake in each of REPEATS fresh processes, taking turns BAKES times (the asset imported anew each time;
@@ -31,6 +32,10 @@ import sys
 import tempfile
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+sys.path.insert(0, ROOT)
+
+from benchmarks import results as result_files  # noqa: E402
+
 DEFAULT_ASSET = os.path.join(os.path.dirname(ROOT), "shared", "assets", "cow.obj")
 BEFORE_SHADING_AWARE = "d8f5541196f64e0fa0ccfe191fdcc045fb01dbd8"  # the commit before the corner split
 FLAT_GOAL, SMOOTH_GOAL = 1.5, 0.05
@@ -170,9 +175,10 @@ def main(argv=None):
     parser.add_argument("--repeats", type=int, help="fresh processes, each baking both sides in turn (default 3; "
                         "--quick 1)")
     parser.add_argument("--bakes", type=int, help="bakes of each side in each process (default 3; --quick 1)")
-    parser.add_argument("--json", metavar="PATH")
+    result_files.add_argument(parser)
     parser.add_argument("--quick", action="store_true", help="a smoke run: --repeats 1 --bakes 1")
     args = parser.parse_args(argv)
+    result_files.check_folder(parser, args)
     args.repeats = args.repeats or (1 if args.quick else 3)
     args.bakes = args.bakes or (1 if args.quick else 3)
     asset = os.path.abspath(args.asset)
@@ -186,8 +192,8 @@ def main(argv=None):
     at_256 = flat_256["times_s"][0] / smooth_256["times_s"][0]
     print("1. flat ÷ smooth at equal estimated error")
     print(f"   at 256 samples each (one pair): time flat ÷ smooth {at_256:.2f}, "
-          f"est. error {flat_256['est']:.4f} ÷ {smooth_256['est']:.4f}; scaled as this benchmark did before "
-          f"(time × error ratio^(1/{CONVERGENCE_RATE})): "
+          f"est. error {flat_256['est']:.4f} ÷ {smooth_256['est']:.4f}; predicted by the convergence "
+          f"rate (time × error ratio^(1/{CONVERGENCE_RATE})): "
           f"{at_256 * (flat_256['est'] / smooth_256['est']) ** (1 / CONVERGENCE_RATE):.2f}")
     print("   flat samples tried: " + ", ".join(f"{count} (est. {result['est']:.4f})"
                                                for count, result in sorted(tried.items())))
@@ -196,9 +202,9 @@ def main(argv=None):
         print(f"   {label}: {times} s; est. {runs[0]['est']:.4f}; {runs[0]['rays']:,} rays; and the probes between "
               f"vertices {runs[0]['probes_s']:.2f} s, fingerprints and probe placing {runs[0]['apart_s']:.3f} s")
         print(f"      {runs[0]['line']}")
-    met = time_ratio <= FLAT_GOAL
+    goals = [result_files.goal("flat ÷ smooth bake time at equal estimated error", time_ratio, "<=", FLAT_GOAL)]
     print(f"   flat ÷ smooth at equal estimated error {time_ratio:.2f} (median pair; fastest bakes "
-          f"{fastest_ratio:.2f})   goal <= {FLAT_GOAL}   {'PASS' if met else 'MISS'}")
+          f"{fastest_ratio:.2f})   goal <= {FLAT_GOAL}   {goals[-1]['verdict']}")
 
     folder = checkout(args.against)
     alias = tempfile.mkdtemp(prefix="prt_against_package_")
@@ -217,16 +223,16 @@ def main(argv=None):
         probes = (f"; and the probes between vertices {runs[0]['probes_s']:.2f} s, fingerprints and probe placing "
                   f"{runs[0]['apart_s']:.3f} s" if runs[0]["probes_s"] else "")
         print(f"   {label:<6} {times} s; {runs[0]['rays']:,} rays{probes}")
-    met = abs(change - 1.0) <= SMOOTH_GOAL
+    goals.append(result_files.goal(f"smooth bake time, this checkout ÷ {args.against[:7]}", change, "within",
+                                   SMOOTH_GOAL))
     print(f"   after ÷ before {change:.3f} (median pair; fastest bakes {fastest_change:.3f})   "
-          f"goal within {SMOOTH_GOAL:.0%}   {'PASS' if met else 'MISS'}")
+          f"goal within {SMOOTH_GOAL:.0%}   {goals[-1]['verdict']}")
     if args.json:
-        with open(args.json, "w", encoding="utf-8") as handle:
-            json.dump({"flat_over_smooth": time_ratio, "flat_over_smooth_fastest": fastest_ratio,
-                       "flat_samples": samples, "flat_tried": tried, "flat_256": flat_256, "smooth_256": smooth_256,
-                       "smooth_after_over_before": change, "smooth_after_over_before_fastest": fastest_change,
-                       "flat": flat,
-                       "smooth": smooth, "after": after, "before": before}, handle, indent=2)
+        result_files.write("corners", args, {
+            "flat_over_smooth": time_ratio, "flat_over_smooth_fastest": fastest_ratio, "flat_samples": samples,
+            "flat_tried": tried, "flat_256": flat_256, "smooth_256": smooth_256, "smooth_after_over_before": change,
+            "smooth_after_over_before_fastest": fastest_change, "flat": flat, "smooth": smooth, "after": after,
+            "before": before}, goals, argv)
 
 
 if __name__ == "__main__":

@@ -17,7 +17,7 @@ The object's own estimate is its bake's est. RMS rel. error (of the transfer, ag
 
 Goals: at every rotation RMS ≤ 2 % and p99 ≤ 10 % against Cycles (the assets' goals).
 
-Run from the repository root:  .venv/bin/python benchmarks/dynamic.py [--quick] [--samples N] [--passes N]
+Run from the repository root:  .venv/bin/python benchmarks/dynamic.py [--quick] [--samples N] [--passes N] [--json [DIR]]
 """
 
 import argparse
@@ -32,6 +32,7 @@ sys.path.insert(0, ROOT)
 import bpy  # noqa: E402  (bpy before mathutils, which the add-on imports)
 import numpy as np  # noqa: E402
 
+from benchmarks import results as result_files  # noqa: E402
 from benchmarks.assets import add_low_sun, cycles_arguments, fresh_file  # noqa: E402
 from prt_addon.blender import display, mesh_arrays, storage, validation  # noqa: E402
 from prt_addon.blender.relighting import Relighter, displayed_light  # noqa: E402
@@ -108,21 +109,28 @@ def table(rows, estimate) -> list[str]:
     return lines
 
 
-def goal_lines(rows) -> list[str]:
+def goals(rows) -> list[dict]:
+    """The goals, as benchmarks/results.py records them: each at the worst rotation, then the display's colours."""
+    found = [result_files.goal(what, 100 * max(row[key] for row in rows), "<=", 100 * bound, "%")
+             for key, (what, bound) in GOALS.items()]
+    agreed = max(row["display"] for row in rows)
+    return found + [result_files.goal("display colours × albedo against validation's, every rotation", agreed, "<=",
+                                      DISPLAY_AGREES)]
+
+
+def goal_lines(rows, judged) -> list[str]:
     lines = []
-    for key, (what, bound) in GOALS.items():
+    for (key, (what, _)), entry in zip(GOALS.items(), judged):
         worst = max(rows, key=lambda row: row[key])
-        verdict = "PASS" if worst[key] <= bound else "MISS"
-        lines.append(f"goal {what}: worst {100 * worst[key]:.2f} % ({worst['label']}): {verdict}")
+        lines.append(f"goal {what}: worst {100 * worst[key]:.2f} % ({worst['label']}): {entry['verdict']}")
     turned = [row for row in rows if row["label"] != "rest"]
     if turned:
         gain = min(row["static_rms"] / max(row["rms"], 1e-9) for row in turned)
         lines.append(f"not turning the light: RMS {min(r['static_rms'] for r in turned) * 100:.1f}..."
                      f"{max(r['static_rms'] for r in turned) * 100:.1f} % once turned, at least {gain:.0f}× the "
                      f"turned light's")
-    agreed = max(row["display"] for row in rows)
-    lines.append(f"display colours × albedo = validation's within {agreed:.1e} of the largest, every rotation "
-                 f"(bound {DISPLAY_AGREES:g}): {'PASS' if agreed <= DISPLAY_AGREES else 'MISS'}")
+    lines.append(f"display colours × albedo = validation's within {judged[-1]['figure']:.1e} of the largest, every "
+                 f"rotation (bound {DISPLAY_AGREES:g}): {judged[-1]['verdict']}")
     return lines
 
 
@@ -131,7 +139,9 @@ def main(argv=None) -> int:
     parser.add_argument("--quick", action="store_true",
                         help="smoke run: 2 rotations, a 32-sample bake, Cycles 2 × 8 samples")
     cycles_arguments(parser, quick_samples=8, quick_passes=2)
+    result_files.add_argument(parser)
     args = parser.parse_args(argv)
+    result_files.check_folder(parser, args)
     samples = args.samples or (8 if args.quick else validation.DEFAULT_SAMPLES)
     passes = args.passes or (2 if args.quick else validation.DEFAULT_PASSES)
     bake_samples = 32 if args.quick else BakeSettings.samples
@@ -153,10 +163,13 @@ def main(argv=None) -> int:
     for line in table(rows, estimate):
         print(line)
     print()
-    for line in goal_lines(rows):
+    judged = goals(rows)
+    for line in goal_lines(rows, judged):
         print(line)
     print(f"bake {bake_s:.1f} s; total {(time.perf_counter() - started) / 60:.1f} min; load "
           f"{', '.join(f'{load:.2f}' for load in os.getloadavg())}")
+    if args.json:
+        result_files.write("dynamic", args, {"estimate": estimate, "bake_s": bake_s, "rotations": rows}, judged, argv)
     return 0
 
 

@@ -32,7 +32,7 @@ depend on the engine's answers (a round's rays are fixed by the seed), so both e
 Sections 3, 5, 6 and 8 bake whole scenes (benchmarks/engine_bakes.py).
 
 Run from the repository root:  .venv/bin/python benchmarks/engines.py [--quick | --final] [--rays] [--answers]
-[--texels] [--json PATH] [--plot PNG] [--assets FOLDER]   (--rays: sections 1-4; --final: 5 and 6; --answers: 7;
+[--texels] [--json [DIR]] [--plot PNG] [--assets FOLDER]   (--rays: sections 1-4; --final: 5 and 6; --answers: 7;
 --texels: 8; any of them together; none: all)
 """
 
@@ -50,13 +50,13 @@ sys.path.insert(0, ROOT)
 import bpy  # noqa: E402  (bpy before mathutils, which the core imports)
 import numpy as np  # noqa: E402
 
-from benchmarks import assets, engine_curves, texels  # noqa: E402
+from benchmarks import assets, engine_curves, results as result_files, texels  # noqa: E402
 from benchmarks.bake import time_bare_loop  # noqa: E402
-from benchmarks.engine_answers import same_answers_cases  # noqa: E402
+from benchmarks.engine_answers import RMS_MOVE, same_answers_cases  # noqa: E402
 from benchmarks.engine_bakes import ENGINES, curve_bakes, final_bakes, planned, texel_room, whole_bakes  # noqa: E402
 from prt_addon.blender.execute import execute  # noqa: E402
 from prt_addon.blender.request import ray_engine_label  # noqa: E402
-from prt_addon.commands.common import schema_registered, write_json  # noqa: E402
+from prt_addon.commands.common import schema_registered  # noqa: E402
 from prt_addon.core import bake, engines, executors, job  # noqa: E402
 
 EDGE = 1e-4   # barycentric margin within which float32 rounding decides whether a ray crosses a face
@@ -243,7 +243,29 @@ def engine_memory(caster) -> dict:
 # -- the run -------------------------------------------------------------------------------------------------------
 def verdict(key, value) -> str:
     relation, goal = GOALS[key]
-    return f"goal {relation} {goal:g}: {'PASS' if (value >= goal) else 'MISS'}"
+    return f"goal {relation} {goal:g}: {result_files.verdict(value, relation, goal)}"
+
+
+def goals(figures: dict) -> list:
+    """The goals of the sections this run measured, as benchmarks/results.py records them."""
+    found = []
+    if "agreement" in figures:
+        worst = 100 * min(row["face_agreement"] for row in figures["agreement"])
+        found.append(result_files.goal("face hit agreement, worst case", worst, *GOALS["agreement"], "%"))
+        found += [result_files.goal(f"casts alone, Embree ÷ BVHTree, {scene}", figures["casts"][scene]["ratio"],
+                                    *GOALS["casts"], "×") for scene in ("demo", "dense")]
+        found.append(result_files.goal("whole demo bake, BVHTree ÷ Embree", figures["whole_bake"]["ratio"],
+                                       *GOALS["bake"], "×"))
+    if "same_answers" in figures:
+        rows = figures["same_answers"]
+        found.append(result_files.goal("cases whose transfers differ beyond their noise",
+                                       sum(not row["z_pass"] for row in rows), "<=", 0))
+        found.append(result_files.goal("largest move of the RMS against Cycles",
+                                       100 * max(abs(row["rms_move"]) for row in rows), "<=", 100 * RMS_MOVE, "points"))
+    if "texel_room" in figures:
+        found.append(result_files.goal("texel room, BVHTree ÷ Embree", figures["texel_room"]["ratio"],
+                                       *GOALS["texels"], "×"))
+    return found
 
 
 def main(argv=None) -> int:
@@ -257,12 +279,13 @@ def main(argv=None) -> int:
                           ("answers", "section 7: the same answers, transfers and against Cycles"),
                           ("texels", "section 8: the texel room")):
         parser.add_argument(f"--{flag}", action="store_true", help=section)
-    parser.add_argument("--json", help="also write the figures as JSON here")
+    result_files.add_argument(parser)
     parser.add_argument("--plot", default="engine_curves.png", help="the figure of both engines' error against run "
                         "time on the demo (default: %(default)s)")
     parser.add_argument("--assets", default=assets.ASSETS, help="the folder of the public test meshes "
                         "benchmarks/assets.py's cases import (default: %(default)s)")
     args = parser.parse_args(argv)
+    result_files.check_folder(parser, args)
     assets.ASSETS = args.assets
     if not engines.embree_installed():
         print(f"engines: error: {engines.EMBREE_MISSING}", file=sys.stderr)
@@ -298,8 +321,7 @@ def run(args) -> int:
         figures["texel_room"] = room(args.quick)
     print(f"\ntotal {(time.perf_counter() - started) / 60:.1f} min")
     if args.json:
-        write_json(args.json, figures)
-        print(f"wrote {os.path.abspath(args.json)}")
+        result_files.write("engines", args, figures, goals(figures))
     return 0
 
 

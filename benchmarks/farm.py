@@ -19,7 +19,7 @@ Every process runs with one BLAS thread (OPENBLAS_NUM_THREADS=1, as the README's
 with OpenBLAS's default of one thread per core its idle helper thread busy-waits beside the bake, which doubles a
 one-process bake's CPU seconds here without making it faster, and would count as work in (a)-(c).
 
-Run from the repository root:  .venv/bin/python benchmarks/farm.py [--part shards|dask] [--json PATH] [--quick]
+Run from the repository root:  .venv/bin/python benchmarks/farm.py [--part shards|dask] [--json [DIR]] [--quick]
 (--part runs and prints only 1 or only 2; --quick is a smoke run: the demo scene without its torus, 2 shards at 16
 and 32 rays, one round, one Dask pair; the goals are for the full run).
 """
@@ -40,6 +40,7 @@ sys.path.insert(0, ROOT)
 import bpy  # noqa: E402  (bpy before mathutils, which the core imports)
 import numpy as np  # noqa: E402
 
+from benchmarks import results as result_files  # noqa: E402
 from prt_addon.blender import sample_scenes, storage  # noqa: E402
 
 SETTINGS = ["--order", "4", "--mode", "shadowed", "--workers", "1"]
@@ -155,10 +156,11 @@ def machine_check(iterations: int) -> float:
 def main():
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--part", choices=["shards", "dask"], help="run only 1 (shards) or only 2 (dask)")
-    parser.add_argument("--json", help="also write the numbers here")
+    result_files.add_argument(parser)
     parser.add_argument("--quick", action="store_true", help="a smoke run: " + ", ".join(
         f"{name} {value}" for name, value in asdict(QUICK).items()))
     args = parser.parse_args()
+    result_files.check_folder(parser, args)
     config = QUICK if args.quick else FULL
     results = {"config": asdict(config)}
     with tempfile.TemporaryDirectory(prefix="prt_farm_bench_") as folder:
@@ -176,8 +178,21 @@ def main():
     if "dask" in results:
         print_dask(results["dask"])
     if args.json:
-        with open(args.json, "w", encoding="utf-8") as out:
-            json.dump(results, out, indent=2)
+        result_files.write("farm", args, results, goals(results))
+
+
+def goals(results: dict) -> list:
+    """The goals of the parts this run measured, as benchmarks/results.py records them."""
+    found = []
+    if "shards" in results:
+        found.append(result_files.goal("4 shards' bake commands ÷ one, CPU", results["shards"][
+            "shard_bakes_cpu_sum_to_one"], "<=", GOALS["shards_cpu_sum_to_one"]))
+    if "dask" in results:
+        dask = results["dask"]
+        found.append(result_files.goal("Dask LocalCluster, 2 workers ÷ one process, wall",
+                                       dask["dask_2_workers_to_one_wall"], "<=", GOALS["dask_2_workers_to_one_wall"]))
+        found.append(result_files.goal("Dask bake bit-identical to one process's", dask["bit_identical"], "==", True))
+    return found
 
 
 def print_shards(results: dict):
@@ -214,7 +229,7 @@ def seconds(values) -> str:
 
 
 def verdict(value: float, goal: str) -> str:
-    return "PASS" if value <= GOALS[goal] else "MISS"
+    return result_files.verdict(value, "<=", GOALS[goal])
 
 
 if __name__ == "__main__":

@@ -1,7 +1,7 @@
 """Light fidelity: the demo scene under each of Blender's bundled HDRIs, against Cycles under the raw HDRI.
 
     .venv/bin/python benchmarks/lights.py [--samples 256] [--cycles-samples 32] [--passes 2] [--hdris a.exr,b.exr]
-                                          [--resolution 160x90] [--windows] [--json PATH] [--quick]
+                                          [--resolution 160x90] [--windows] [--json [DIR]] [--quick]
 
 Per HDRI, one row per configuration, each at the Window the panel proposes (Auto):
   * PRT only, order 4 (the original program's order);
@@ -22,7 +22,6 @@ it; the goals are for the full run).
 
 import argparse
 import glob
-import json
 import os
 import statistics
 import sys
@@ -34,6 +33,7 @@ import bpy  # noqa: E402  (before mathutils, which the core uses)
 import numpy as np  # noqa: E402
 
 import prt_addon  # noqa: E402
+from benchmarks import results as result_files  # noqa: E402
 from prt_addon.blender import image_validation, lights, materials, sample_scenes, storage  # noqa: E402
 from prt_addon.blender.cycles import CyclesReference, LightGroup, rendered_meshes  # noqa: E402
 from prt_addon.blender.scene_bake import SceneBake  # noqa: E402
@@ -175,10 +175,6 @@ def defaults(rows) -> list[dict]:
     return list(chosen.values())
 
 
-def verdict(met: bool) -> str:
-    return "PASS" if met else "MISS"
-
-
 def main(argv):
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--samples", type=int, help=f"bake samples per vertex (default {FULL['samples']})")
@@ -188,10 +184,11 @@ def main(argv):
     parser.add_argument("--resolution", help=f"default {FULL['resolution']}")
     parser.add_argument("--hdris", help="comma-separated file names (default: every bundled one)")
     parser.add_argument("--windows", action="store_true", help="Auto against None and Hanning at the vertices")
-    parser.add_argument("--json", help="write the rows here")
+    result_files.add_argument(parser)
     parser.add_argument("--quick", action="store_true", help="a smoke run: " + ", ".join(
         f"{name} {value}" for name, value in QUICK.items()))
     args = parser.parse_args(argv)
+    result_files.check_folder(parser, args)
     for name, value in (QUICK if args.quick else FULL).items():
         if getattr(args, name) is None:
             setattr(args, name, value)
@@ -219,21 +216,26 @@ def main(argv):
     if args.windows:
         worse = [row for row in rows if row["window_errors"]["auto"] > max(row["window_errors"]["none"],
                                                                           row["window_errors"]["hanning"])]
+        goals = [result_files.goal("rows where the Auto window is worse than both None and Hanning", len(worse),
+                                   "<=", 0)]
         print(f"Auto worse than both None and Hanning: {len(worse)} of {len(rows)} rows (goal: none) "
-              f"{verdict(not worse)}")
-        return
-    chosen = defaults(rows)
-    median = statistics.median(row["image_error"] for row in chosen)
-    print(f"median image error at the proposed defaults over {len(chosen)} HDRIs: {100 * median:.1f} % "
-          f"(goal ≤ {100 * GOAL_MEDIAN:.0f} %) {verdict(median <= GOAL_MEDIAN)}")
-    sunrise = [row for row in rows if row["hdri"] == "sunrise.exr" and row["config"] == "hybrid"]
-    if sunrise:
-        error = sunrise[0]["image_error"]
-        print(f"sunrise.exr, hybrid: image error {100 * error:.1f} % (goal ≤ {100 * GOAL_SUNRISE:.0f} %) "
-              f"{verdict(error <= GOAL_SUNRISE)}")
+              f"{goals[0]['verdict']}")
+    else:
+        chosen = defaults(rows)
+        median = statistics.median(row["image_error"] for row in chosen)
+        goals = [result_files.goal(f"median image error at the proposed defaults, {len(chosen)} HDRIs", 100 * median,
+                                   "<=", 100 * GOAL_MEDIAN, "%")]
+        print(f"median image error at the proposed defaults over {len(chosen)} HDRIs: {100 * median:.1f} % "
+              f"(goal ≤ {100 * GOAL_MEDIAN:.0f} %) {goals[-1]['verdict']}")
+        sunrise = [row for row in rows if row["hdri"] == "sunrise.exr" and row["config"] == "hybrid"]
+        if sunrise:
+            error = sunrise[0]["image_error"]
+            goals.append(result_files.goal("sunrise.exr, hybrid, image error", 100 * error, "<=", 100 * GOAL_SUNRISE,
+                                           "%"))
+            print(f"sunrise.exr, hybrid: image error {100 * error:.1f} % (goal ≤ {100 * GOAL_SUNRISE:.0f} %) "
+                  f"{goals[-1]['verdict']}")
     if args.json:
-        with open(args.json, "w") as file:
-            json.dump({"rows": rows, "median_defaults": median}, file, indent=1)
+        result_files.write("lights", args, rows, goals, argv)
 
 
 if __name__ == "__main__":

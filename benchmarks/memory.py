@@ -1,6 +1,6 @@
 """Peak memory of a 1 M-vertex shadowed bake, as a multiple of the transfer it stores.
 
-    .venv/bin/python benchmarks/memory.py [--side 1000] [--samples 16] [--quick]
+    .venv/bin/python benchmarks/memory.py [--side 1000] [--samples 16] [--quick] [--json [DIR]]
 
 (--quick: a 100 × 100 grid, a smoke run of seconds; the ratio then holds mostly Blender's fixed overhead.)
 
@@ -21,6 +21,7 @@ sys.path.insert(0, ROOT)
 import bpy  # noqa: E402  (before mathutils)
 import numpy as np  # noqa: E402
 
+from benchmarks import results as result_files  # noqa: E402
 from prt_addon.blender.scene_bake import SceneBake  # noqa: E402
 from prt_addon.core.bake import BakeSettings  # noqa: E402
 from prt_addon.commands.common import schema_registered  # noqa: E402
@@ -81,7 +82,9 @@ def main(argv=None):
     parser.add_argument("--samples", type=int, default=16)
     parser.add_argument("--order", type=int, default=4)
     parser.add_argument("--quick", action="store_true", help=f"a smoke run on a {QUICK_SIDE} × {QUICK_SIDE} grid")
+    result_files.add_argument(parser)
     args = parser.parse_args(argv)
+    result_files.check_folder(parser, args)
     args.side = args.side or (QUICK_SIDE if args.quick else 1000)
     bpy.ops.wm.read_homefile(use_empty=True)
     grid = build_grid(args.side)
@@ -101,7 +104,12 @@ def main(argv=None):
     print(f"vertices {vertices:,}, order {args.order}: transfer stored {transfer_bytes / 2**20:.1f} MiB (float32)")
     print(f"resident before {before / 2**20:.0f} MiB, peak during bake {sampler.peak / 2**20:.0f} MiB, "
           f"wall {elapsed:.1f} s")
-    print(f"peak memory / transfer size = {(sampler.peak - before) / transfer_bytes:.2f}")
+    ratio = (sampler.peak - before) / transfer_bytes
+    print(f"peak memory / transfer size = {ratio:.2f}")
+    if args.json:  # no goal: the figure says what a bake holds beyond its transfer
+        result_files.write("memory", args, {"vertices": vertices, "transfer_bytes": transfer_bytes,
+                                            "resident_before_bytes": before, "peak_bytes": sampler.peak,
+                                            "wall_s": elapsed, "peak_over_transfer": ratio}, [], argv)
 
 
 if __name__ == "__main__":

@@ -23,7 +23,7 @@ Goals, as for every asset: RMS ≤ 2 % and p99 ≤ 10 % against Cycles, actual �
 docs/cycles_conventions.md says what Cycles decides at each of these faults, and where in its source.
 
 Run from the repository root:  .venv/bin/python benchmarks/messy_assets.py [--quick] [--samples N] [--passes N]
-                                   [--cases a,b] [--reference-points N] [--workers N] [--json PATH]
+                                   [--cases a,b] [--reference-points N] [--workers N] [--json [DIR]]
 """
 
 import math

@@ -1,7 +1,7 @@
 """PRT probe volumes: a dynamic object moved through the demo room against Cycles, and the live cost of relighting it.
 
     .venv/bin/python benchmarks/probes.py [--quick] [--only accuracy|live] [--samples 64] [--passes 4] [--steps 30]
-                                          [--json PATH]
+                                          [--json [DIR]]
 
 Accuracy: the demo room (blender.sample_scenes.build_demo_scene, with `prt demo`'s sun and sky as SH lights) with a
 probe volume over it and a dynamic Suzanne (scaled to 0.25, lit per vertex) moved and turned to PLACEMENTS: in the
@@ -26,7 +26,6 @@ the probes' product, the per-vertex shading, the colour write.
 """
 
 import argparse
-import json
 import math
 import os
 import statistics
@@ -40,6 +39,7 @@ sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 import bpy  # noqa: E402  (before mathutils, which the core uses)
 
 import prt_addon  # noqa: E402
+from benchmarks import results as result_files  # noqa: E402
 from benchmarks.relight import set_light_count, timed_update  # noqa: E402
 from prt_addon.blender import display, layouts, probe_volumes, sample_scenes, storage, validation  # noqa: E402
 from prt_addon.blender.relighting import dynamic_radiance  # noqa: E402
@@ -65,10 +65,6 @@ LIVE_SPHERE, QUICK_LIVE_SPHERE = (448, 224), (32, 16)  # segments, rings: 99,906
 LIGHTS = 8
 GOAL_MS = 33.0
 GOAL_RATIO = 1.1
-
-
-def verdict(met):
-    return "PASS" if met else "MISS"
 
 
 def log(line):
@@ -182,8 +178,8 @@ def accuracy(args):
           + " ".join(f"{100 * c.error:>12.2f}%" for c in stale))
     finest = max(c.error for c in rows[resolutions[-1]][1])
     print(f"worst placement at the finest spacing: {100 * finest:.2f} % RMS   goal <= {100 * GOAL_RMS:.0f} %   "
-          f"{verdict(finest <= GOAL_RMS)}")
-    return {"vertices": vertices, "placements": names, "stale": [c.error for c in stale],
+          f"{result_files.verdict(finest, '<=', GOAL_RMS)}")
+    return {"vertices": vertices, "placements": names, "finest_worst": finest, "stale": [c.error for c in stale],
             "by_resolution": {"x".join(map(str, r)): {"bake_s": b, "errors": [c.error for c in e]}
                               for r, (b, e) in rows.items()}}
 
@@ -258,8 +254,8 @@ def live(args):
     print(f"  parts (CPU time): the probes' product {parts['probes']:.1f} ms, per-vertex shading {parts['shade']:.1f} "
           f"ms, colour write {parts['write']:.1f} ms")
     print(f"per update at {len(ob.data.vertices):,} vertices and {probes:,} probes: {cpu:.1f} ms   goal <= "
-          f"{GOAL_MS:.0f} ms   {verdict(cpu <= GOAL_MS)}")
-    print(f"8 lights ÷ 1 light (one moving): {ratio:.2f}   goal <= {GOAL_RATIO}   {verdict(ratio <= GOAL_RATIO)}")
+          f"{GOAL_MS:.0f} ms   {result_files.verdict(cpu, '<=', GOAL_MS)}")
+    print(f"8 lights ÷ 1 light (one moving): {ratio:.2f}   goal <= {GOAL_RATIO}   {result_files.verdict(ratio, '<=', GOAL_RATIO)}")
     return {"vertices": len(ob.data.vertices), "probes": probes, "cpu_ms": cpu, "wall_ms": one, "ratio": ratio,
             "wall_ratio": wall_ratio, "full_ms": full, "parts_cpu_ms": parts}
 
@@ -290,11 +286,12 @@ def main(argv=None):
     parser.add_argument("--samples", type=int, help="Cycles samples per pass (default 64; --quick 4)")
     parser.add_argument("--passes", type=int, help="Cycles passes (default 4; --quick 2)")
     parser.add_argument("--steps", type=int, help="timed live updates per configuration (default 30; --quick 3)")
-    parser.add_argument("--json", metavar="PATH", help="also write the numbers as JSON")
+    result_files.add_argument(parser)
     parser.add_argument("--only", choices=("accuracy", "live"), help="run one part alone")
     parser.add_argument("--order", type=int, default=ORDER, help=f"SH order of every bake (default {ORDER})")
     parser.add_argument("--quick", action="store_true", help="a smoke run on coarse probes and small objects")
     args = parser.parse_args(argv)
+    result_files.check_folder(parser, args)
     args.samples = args.samples or (4 if args.quick else 64)
     args.passes = args.passes or (2 if args.quick else 4)
     args.steps = args.steps or (3 if args.quick else 30)
@@ -305,11 +302,22 @@ def main(argv=None):
                if args.only in (None, part)}
     prt_addon.unregister()
     if args.json:
-        os.makedirs(os.path.dirname(os.path.abspath(args.json)), exist_ok=True)
-        with open(args.json, "w", encoding="utf-8") as handle:
-            json.dump(results, handle, indent=2)
-        print(f"wrote {args.json}")
+        result_files.write("probes", args, results, goals(results), argv)
     return 0
+
+
+def goals(results: dict) -> list:
+    """The goals of the parts this run measured, as benchmarks/results.py records them."""
+    found = []
+    if "accuracy" in results:
+        found.append(result_files.goal("worst placement at the finest probe spacing, RMS against Cycles",
+                                       100 * results["accuracy"]["finest_worst"], "<=", 100 * GOAL_RMS, "%"))
+    if "live" in results:
+        live = results["live"]
+        found.append(result_files.goal(f"light change to colours, {live['probes']:,} probes, {live['vertices']:,} "
+                                       "vertices moving (CPU)", live["cpu_ms"], "<=", GOAL_MS, "ms"))
+        found.append(result_files.goal("8 lights ÷ 1 light, probes", live["ratio"], "<=", GOAL_RATIO))
+    return found
 
 
 if __name__ == "__main__":

@@ -1,6 +1,6 @@
 """Relighting speed: from a light change to the colour attribute written, through the real depsgraph handler.
 
-    .venv/bin/python benchmarks/relight.py [--steps 60] [--json PATH] [--texels | --texels-only] [--quick]
+    .venv/bin/python benchmarks/relight.py [--steps 60] [--json [DIR]] [--texels | --texels-only] [--quick]
 
 For grids of 10 k, 100 k and 1 M vertices baked at order 4 (unshadowed: the timing does not depend on the
 transfer's values), it changes lights' θ, runs `view_layer.update()` and measures the time until the handler has
@@ -25,7 +25,6 @@ each (the goals are for the full run).
 
 import argparse
 import gc
-import json
 import math
 import os
 import statistics
@@ -37,6 +36,8 @@ import numpy as np
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 import bpy  # noqa: E402  (before mathutils, which the core uses)
+
+from benchmarks import results as result_files  # noqa: E402
 
 import prt_addon  # noqa: E402
 from prt_addon.blender import display, texel_maps  # noqa: E402
@@ -199,32 +200,44 @@ def measure_texels(steps, side=TEXEL_SIDE):
     return {name: 1000 * statistics.median(found) for name, found in samples.items()}
 
 
-def verdict(met):
-    return "PASS" if met else "MISS"
+def goal(goals: list, name: str, figure, bound, unit: str = "") -> str:
+    """Records a goal of the form figure ≤ bound; its verdict to print."""
+    goals.append(result_files.goal(name, figure, "<=", bound, unit))
+    return goals[-1]["verdict"]
+
+
+def finish(args, figures: dict, goals: list) -> int:
+    prt_addon.unregister()
+    if args.json:
+        result_files.write("relight", args, figures, goals, args.argv)
+    return 0
 
 
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--steps", type=int, help="timed updates per configuration (default 60; --quick 5)")
-    parser.add_argument("--json", metavar="PATH", help="also write the numbers as JSON")
+    result_files.add_argument(parser)
     parser.add_argument("--texels", action="store_true", help="also time a 1024 × 1024 texel map")
     parser.add_argument("--texels-only", action="store_true", help="time only the 1024 × 1024 texel map")
     parser.add_argument("--quick", action="store_true", help="a smoke run on small grids and a small texel map")
     args = parser.parse_args(argv)
+    result_files.check_folder(parser, args)
+    args.argv = argv
     args.steps = args.steps or (QUICK_STEPS if args.quick else 60)
     sides, texel_side = (QUICK_SIDES, QUICK_TEXEL_SIDE) if args.quick else (SIDES, TEXEL_SIDE)
     prt_addon.register()
     print(f"relight benchmark: bpy {bpy.app.version_string}, {os.cpu_count()} cores, "
           f"load average {os.getloadavg()[0]:.2f}")
+    figures, goals = {"steps": args.steps}, []
     if args.texels or args.texels_only:
-        ms = measure_texels(args.steps, texel_side)
+        ms = figures["texels_ms"] = measure_texels(args.steps, texel_side)
+        met = goal(goals, f"light change to shaded image, {texel_side}² texels", ms["update"], GOAL_MS, "ms")
         print(f"texels {texel_side} × {texel_side}, order 4, median of {args.steps} updates: light change to shaded "
               f"image {ms['update']:.1f} ms (shading {ms['shade']:.1f} ms, pixel write {ms['write']:.1f} ms)   goal <= "
-              f"{GOAL_MS:.0f} ms   {verdict(ms['update'] <= GOAL_MS)}")
+              f"{GOAL_MS:.0f} ms   {met}")
         print(f"  GPU alternative's handler: 48 light values set on nodes in {ms['gpu_values']:.2f} ms")
         if args.texels_only:
-            prt_addon.unregister()
-            return 0
+            return finish(args, figures, goals)
     print(f"order 4, median of {args.steps} updates each; ms from a light change to the colours written")
     print(f"{'vertices':>10} {'1 light':>9} {'8 (1 moves)':>12} {'ratio':>6} {'8 (all move)':>13} {'ratio':>6}"
           f" {'full update':>12}")
@@ -240,25 +253,19 @@ def main(argv=None):
             gc.collect()
         costs = order_costs(sides[-1], max(5, args.steps // 6), clock)
     gc.enable()
-    prt_addon.unregister()
     largest = max(results)
     for order, (ms, megabytes) in costs.items():
         print(f"order {order:2d} at {largest:,} vertices: {ms:.1f} ms per update (1 light), "
               f"transfer {megabytes:,.0f} MB stored")
     time_ms = results[largest]["one"]
-    print(f"per update at {largest:,} vertices: {time_ms:.1f} ms   goal <= {GOAL_MS:.0f} ms   "
-          f"{verdict(time_ms <= GOAL_MS)}")
+    met = goal(goals, f"light change to colours written, {largest:,} vertices", time_ms, GOAL_MS, "ms")
+    print(f"per update at {largest:,} vertices: {time_ms:.1f} ms   goal <= {GOAL_MS:.0f} ms   {met}")
     for vertices, ms in results.items():
+        met = goal(goals, f"8 lights ÷ 1 light, {vertices:,} vertices", ms["ratio_one_moving"], GOAL_RATIO)
         print(f"8 lights ÷ 1 light at {vertices:,} vertices (one moving): {ms['ratio_one_moving']:.2f}   "
-              f"goal <= {GOAL_RATIO}   {verdict(ms['ratio_one_moving'] <= GOAL_RATIO)}")
-    if args.json:
-        os.makedirs(os.path.dirname(os.path.abspath(args.json)), exist_ok=True)
-        with open(args.json, "w", encoding="utf-8") as handle:
-            json.dump({"steps": args.steps, "ms_by_vertices": results,
-                       "order_ms_and_mb_at_largest": {str(order): cost for order, cost in costs.items()}},
-                      handle, indent=2)
-        print(f"wrote {args.json}")
-    return 0
+              f"goal <= {GOAL_RATIO}   {met}")
+    figures.update(ms_by_vertices=results, order_ms_and_mb_at_largest={str(o): cost for o, cost in costs.items()})
+    return finish(args, figures, goals)
 
 
 if __name__ == "__main__":

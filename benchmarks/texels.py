@@ -1,6 +1,7 @@
 """Texel storage: what it costs and what it buys.
 
     .venv/bin/python benchmarks/texels.py [--part room|image|all] [--workers 2] [--resolution 1024] [--quick]
+                                          [--json [DIR]]
 
 room: the demo scene's floor and walls stored per texel at 1024 × 1024 (their own UV map), shadowed, order 4, to a
 1 % target error (256 samples, up to 4096): the bake's time (goal ≤ 60 s on 2 cores), its texels baked and
@@ -28,6 +29,8 @@ sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 import bpy  # noqa: E402  (before mathutils, which the core uses)
 import numpy as np  # noqa: E402
+
+from benchmarks import results as result_files  # noqa: E402
 
 import prt_addon  # noqa: E402
 from prt_addon.blender import sample_scenes, texel_maps  # noqa: E402
@@ -73,7 +76,8 @@ def room_scene(sizes: Sizes) -> bake.BakeSettings:
                              max_samples=sizes.room_max_samples)
 
 
-def room(sizes: Sizes, workers):
+def room(sizes: Sizes, workers, goals: list) -> dict:
+    """The room's figures; its time goal appended to `goals`."""
     settings = room_scene(sizes)
     resolution = sizes.resolution
     start = time.perf_counter()
@@ -83,15 +87,18 @@ def room(sizes: Sizes, workers):
     print(summary.line())
     print(f"texel lattices: {scene_bake.results.lattices}")
     texels = sum(len(s.layout.texels) for s in scene_bake.results.layouts if isinstance(s, PerTexel))
-    verdict = "PASS" if seconds <= ROOM_GOAL_S else "MISS"
+    goals.append(result_files.goal(f"texel room at {resolution}², 2 workers, wall time", seconds, "<=", ROOM_GOAL_S,
+                                   "s"))
     print(f"room: floor and walls at {resolution} × {resolution} ({texels:,} covered texels) + torus per vertex, "
           f"1 % target, {workers} workers: {seconds:.1f} s (gathering and checks included)   goal <= "
-          f"{ROOM_GOAL_S:.0f} s   {verdict}")
+          f"{ROOM_GOAL_S:.0f} s   {goals[-1]['verdict']}")
     actual, reference_noise = actual_error(scene_bake, settings, workers, sizes)
     estimates = [summary.per_object[name]["est_rms_rel_error"] for name in ROOM_TEXELS]
     print(f"room: actual RMS rel. error of the texel maps against the reference ({sizes.reference_texels} texels per "
           f"object at {sizes.reference_samples} samples, its own noise {reference_noise:.4f} taken out): {actual:.4f}; the bake "
           f"estimated {math.sqrt(np.mean(np.square(estimates))):.4f} for them (RMS of the objects' estimates)")
+    return {"seconds": seconds, "texels": texels, "actual_rms_rel_error": actual, "reference_noise": reference_noise,
+            "estimates": estimates}
 
 
 def actual_error(scene_bake, settings, workers, sizes: Sizes):
@@ -133,7 +140,9 @@ def sphere_over_floor(cuts):
     bpy.context.scene.camera = camera
 
 
-def image(sizes: Sizes, workers):
+def image(sizes: Sizes, workers, goals: list) -> dict:
+    """Each scene's image errors by Storage; Auto's goal for each appended to `goals`."""
+    found = {}
     for cuts in sizes.floor_cuts:
         label = "one-quad floor" if cuts == 1 else f"{cuts} × {cuts} floor"
         errors = {}
@@ -150,13 +159,16 @@ def image(sizes: Sizes, workers):
             print(f"image: sphere over a {label}, Storage {storage.title()}: bake {summary.time_s:.1f} s; {chosen}")
             print(f"  {report.line()}")
         auto = errors["auto"]
-        verdict = "PASS" if auto.error <= IMAGE_GOAL else "MISS"
+        found[label] = {storage: {"rms": c.error, "p99": c.p99} for storage, c in errors.items()}
+        goals.append(result_files.goal(f"image RMS with Auto, sphere over a {label}", 100 * auto.error, "<=",
+                                       100 * IMAGE_GOAL, "%"))
         others = " and".join(f" {100 * errors[storage].error:.2f} % {what} (p99 {100 * errors[storage].p99:.1f} %)"
                              for storage, what in (("vertex", "per vertex"), ("texel", "with every object per texel"))
                              if storage in errors)
         print(f"image: sphere over a {label}: image RMS error {100 * auto.error:.2f} % with Auto (p99 "
               f"{100 * auto.p99:.1f} %){' against' + others if others else ''}   goal <= "
-              f"{100 * IMAGE_GOAL:.0f} %   {verdict}")
+              f"{100 * IMAGE_GOAL:.0f} %   {goals[-1]['verdict']}")
+    return found
 
 
 def main(argv=None):
@@ -165,20 +177,25 @@ def main(argv=None):
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--resolution", type=int, help="room: texels along each side (default 1024; --quick 64)")
     parser.add_argument("--quick", action="store_true", help="a smoke run: small sizes, the goals are for the full run")
+    result_files.add_argument(parser)
     args = parser.parse_args(argv)
+    result_files.check_folder(parser, args)
     sizes = QUICK if args.quick else FULL
     if args.resolution:
         sizes = replace(sizes, resolution=args.resolution)
     prt_addon.register()
     print(f"texel benchmark{' (quick: the goals are for the full run)' if args.quick else ''}: bpy "
           f"{bpy.app.version_string}, {os.cpu_count()} cores, load average {os.getloadavg()[0]:.2f}")
+    figures, goals = {}, []
     try:
         if args.part in ("room", "all"):
-            room(sizes, args.workers)
+            figures["room"] = room(sizes, args.workers, goals)
         if args.part in ("image", "all"):
-            image(sizes, args.workers)
+            figures["image"] = image(sizes, args.workers, goals)
     finally:
         prt_addon.unregister()
+    if args.json:
+        result_files.write("texels", args, figures, goals, argv)
     return 0
 
 

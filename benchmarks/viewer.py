@@ -1,7 +1,7 @@
 """The original program's performance table, redone in the browser viewer: frames per second in headless Chromium
 (Debian's, WebGL 2 on SwiftShader, the CPU) for the demo scene with 1 and with 8 lights.
 
-    .venv/bin/python benchmarks/viewer.py [--frames 40] [--rounds 5] [--size 640x480] [--json PATH] [--quick]
+    .venv/bin/python benchmarks/viewer.py [--frames 40] [--rounds 5] [--size 640x480] [--json [DIR]] [--quick]
 
 The demo scene (torus room, 13,575 vertices) is baked (order 4, shadowed, 64 rays a vertex) and exported with the
 web profile; two pages load it, one keeping the export's first light, one with 8 (suns added as keys 1-8 add them).
@@ -15,7 +15,6 @@ for the full run).
 """
 
 import argparse
-import json
 import os
 import statistics
 import sys
@@ -26,6 +25,7 @@ sys.path[:0] = [ROOT, os.path.join(ROOT, "tests")]
 
 import bpy  # noqa: E402  (before mathutils, which the core uses)
 
+from benchmarks import results as result_files  # noqa: E402
 from browser import chromium, open_viewer  # noqa: E402
 from prt_addon.blender import gltf, sample_scenes  # noqa: E402
 from prt_addon.blender.scene_bake import SceneBake  # noqa: E402
@@ -77,25 +77,25 @@ def main():
     parser.add_argument("--rounds", type=int, help=f"alternating measurements per side (default {FULL['rounds']})")
     parser.add_argument("--size", help=f"the page's size, WxH (default {FULL['size']})")
     parser.add_argument("--samples", type=int, help=f"the bake's rays per vertex (default {FULL['samples']})")
-    parser.add_argument("--json", help="also write the numbers here")
+    result_files.add_argument(parser)
     parser.add_argument("--quick", action="store_true", help="a smoke run: " + ", ".join(
         f"{name} {value}" for name, value in QUICK.items()))
     args = parser.parse_args()
+    result_files.check_folder(parser, args)
     for name, value in (QUICK if args.quick else FULL).items():
         if getattr(args, name) is None:
             setattr(args, name, value)
     size = tuple(int(part) for part in args.size.lower().split("x"))
     result = measure(args.frames, args.rounds, size, args.samples)
-    verdict = "PASS" if result["ratio_8_to_1"] >= GOAL else "MISS"
+    goal = result_files.goal("frame rate, 8 lights ÷ 1 light", result["ratio_8_to_1"], ">=", GOAL)
     print(f"viewer, demo scene ({result['vertices']} glTF vertices) at {size[0]}×{size[1]} in headless Chromium "
           f"(SwiftShader), {args.rounds} rounds of {args.frames} frames:")
     print(f"  1 light:  {result['fps_1_light']:.1f} fps")
     print(f"  8 lights: {result['fps_8_lights']:.1f} fps")
     print(f"  8 ÷ 1 lights: {result['ratio_8_to_1']:.3f} (rounds: "
-          f"{', '.join(f'{r:.3f}' for r in result['ratios'])}); goal ≥ {GOAL}: {verdict}")
+          f"{', '.join(f'{r:.3f}' for r in result['ratios'])}); goal ≥ {GOAL}: {goal['verdict']}")
     if args.json:
-        with open(args.json, "w", encoding="utf-8") as file:
-            json.dump(result, file, indent=2)
+        result_files.write("viewer", args, result, [goal])
 
 
 if __name__ == "__main__":

@@ -3,6 +3,7 @@ and must end with exit 0 and print its goal and figure lines, with real numbers 
 agreeing with the number beside it. The goals themselves are for the full runs (a smoke run's figures mean
 nothing): what fails here is a benchmark that no longer runs against the engine and pipeline it measures."""
 
+import json
 import math
 from pathlib import Path
 import re
@@ -17,7 +18,8 @@ from conftest import ROOT
 
 NUMBER = r"[-+]?\d[\d,]*(?:\.\d+)?(?:[eE][-+]?\d+)?"
 # the scripts, not the modules some of them import (benchmarks/engine_answers.py, engine_bakes.py, engine_curves.py)
-ALL_SCRIPTS = {path.stem for path in (ROOT / "benchmarks").glob("*.py") if "__main__" in path.read_text()}
+# nor benchmarks/results.py, which writes and tabulates their results (tests/test_benchmark_results.py)
+ALL_SCRIPTS = {path.stem for path in (ROOT / "benchmarks").glob("*.py") if "__main__" in path.read_text()} - {"results"}
 
 
 def run_benchmark(script: str, *arguments, timeout=600) -> str:
@@ -162,14 +164,34 @@ def test_memory_smoke_run():
     number(found(r"^peak memory / transfer size = {n}$", out).group(1))
 
 
-def test_relight_smoke_run():
-    out = run_benchmark("relight", "--quick", "--texels")
+def written_result(folder: Path, benchmark: str, out: str) -> dict:
+    """The one result file a run with `--json folder` wrote, named by its date and benchmark, as it printed."""
+    (path,) = folder.glob(f"????-??-??-{benchmark}.json")
+    assert f"wrote {path}" in out
+    return json.loads(path.read_text(encoding="utf-8"))
+
+
+def test_relight_smoke_run(tmp_path):
+    out = run_benchmark("relight", "--quick", "--texels", "--json", tmp_path)
     goal_line(r"^texels 128 × 128, order 4, median of 5 updates: light change to shaded image {n} ms", out, "<=", 33)
     goal_line(r"^per update at 10,000 vertices: {n} ms   goal <= 33 ms", out, "<=", 33)
     for vertices in ("100", "1,024", "10,000"):
         goal_line(rf"^8 lights ÷ 1 light at {vertices} vertices \(one moving\): {{n}}   goal <= 1\.1", out, "<=", 1.1)
     for order in (4, 8, 16):
         number(found(rf"^order +{order} at 10,000 vertices: {{n}} ms per update", out).group(1))
+    result = written_result(tmp_path, "relight", out)  # the goals as printed, with where and how they were measured
+    assert result["benchmark"] == "relight" and result["quick"] is True and result["machine"]["cores"] >= 1
+    assert result["command"].startswith("benchmarks/relight.py --quick --texels --json ")
+    assert len(result["commit"]) >= 12 and result["blender"][0].isdigit()
+    assert [entry["name"] for entry in result["goals"]] == [
+        "light change to shaded image, 128² texels", "light change to colours written, 10,000 vertices",
+        "8 lights ÷ 1 light, 100 vertices", "8 lights ÷ 1 light, 1,024 vertices", "8 lights ÷ 1 light, 10,000 vertices"]
+    printed = [float(value) for value in re.findall(rf"(?:shaded image|update at [\d,]+ vertices:|light at [\d,]+ "
+                                                    rf"vertices \(one moving\):) ({NUMBER})", out)]
+    for entry, value in zip(result["goals"], printed, strict=True):
+        assert entry["figure"] == pytest.approx(value, abs=0.051) and entry["relation"] == "<="
+        assert entry["verdict"] == ("PASS" if entry["figure"] <= entry["bound"] else "MISS")
+    assert result["rows"]["ms_by_vertices"]["10000"]["one"] == result["goals"][1]["figure"]
 
 
 @pytest.mark.study  # a minute of probe bakes and Cycles, the same script on every Blender: once per CI run
@@ -233,8 +255,8 @@ def test_viewer_smoke_run():
     assert ratio == pytest.approx(eight / one, rel=0.5)  # the median of rounds' ratios, near the medians' ratio
 
 
-def test_assets_smoke_run():
-    out = run_benchmark("assets", "--quick", "--cases", "sphere flat,cylinder")
+def test_assets_smoke_run(tmp_path):
+    out = run_benchmark("assets", "--quick", "--cases", "sphere flat,cylinder", "--json", tmp_path)
     rows = {}
     for name in ("sphere flat", "cylinder"):
         match = found(rf"^{name}\s+\d+\s+\d+\s+\d+\s+{{n}}\s+{{n}}\s+\d+\s+{{n}}\s+{{n}}\s+{{n}}\s+{{n}}"
@@ -248,6 +270,12 @@ def test_assets_smoke_run():
         "PASS" if p99_met else "MISS")
     found(r"^goal actual ÷ estimated error within 1/1\.5\.\.1\.5, every case: (PASS|MISS)", out)
     number(found(r"^sphere flat baked with its smooth vertex normals instead, .*: RMS {n} %", out).group(1))
+    goals = {entry["name"]: entry for entry in written_result(tmp_path, "assets", out)["goals"]}
+    assert set(goals) == {"RMS against Cycles, worst asset", "p99 against Cycles, worst asset",
+                          "actual ÷ estimated error, farthest from 1 either way"}  # no demo case in this run
+    assert goals["RMS against Cycles, worst asset"]["figure"] == pytest.approx(max(row[2] for row in rows.values()),
+                                                                               abs=0.006)
+    assert goals["RMS against Cycles, worst asset"]["verdict"] == ("PASS" if rms_met else "MISS")
 
 
 def test_dynamic_smoke_run():
