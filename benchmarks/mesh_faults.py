@@ -1,7 +1,7 @@
 """Checks before any ray on a large messy scene: how long finding crossing parts, parts inside others and thin
 faces (core.mesh_faults) takes on about 100 k triangles of spheres scattered so that some cross and some nest.
 
-    .venv/bin/python benchmarks/mesh_faults.py [--quick]
+    .venv/bin/python benchmarks/mesh_faults.py [--quick] [--json [DIR]]
 
 Goal: about a second for 100 k triangles (the Check button is pressed before every bake). Prints the scene, the
 faults found and each step's seconds, then the total against the goal. --quick: the two nested spheres alone.
@@ -16,6 +16,7 @@ sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 import numpy as np  # noqa: E402
 
+from benchmarks import results as result_files  # noqa: E402
 from prt_addon.core import mesh_faults  # noqa: E402
 
 GOAL_S = 1.0
@@ -56,7 +57,9 @@ def scene(triangles: int):
 def main():
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--quick", action="store_true", help="the two nested spheres alone (12 k triangles)")
+    result_files.add_argument(parser)
     arguments = parser.parse_args()
+    result_files.check_folder(parser, arguments)
     positions, triangles = scene(10_000 if arguments.quick else 100_000)
     times = {}
     start = time.perf_counter()
@@ -73,8 +76,13 @@ def main():
     print(f"found: {len(crossing)} crossing triangle pairs, {len(inside)} parts inside others, "
           f"{int(degenerate.sum())} zero-area and {int(sliver.sum())} sliver triangles")
     print("seconds: " + ", ".join(f"{name} {seconds:.3f}" for name, seconds in times.items()))
-    print(f"checks of {len(triangles):,} triangles: {total:.3f} s   goal <= {GOAL_S:g} s   "
-          f"{'PASS' if total <= GOAL_S else 'MISS'}")
+    goal = result_files.goal(f"checks of {len(triangles):,} triangles", total, "<=", GOAL_S, "s")
+    print(f"checks of {len(triangles):,} triangles: {total:.3f} s   goal <= {GOAL_S:g} s   {goal['verdict']}")
+    if arguments.json:
+        result_files.write("mesh_faults", arguments, {
+            "triangles": len(triangles), "parts": int(parts.max() + 1), "crossing_pairs": len(crossing),
+            "inside_parts": len(inside), "zero_area": int(degenerate.sum()), "slivers": int(sliver.sum()),
+            "seconds": times}, [goal])
 
 
 if __name__ == "__main__":

@@ -122,8 +122,10 @@ def current_goals(records: list[dict]) -> dict:
     return table
 
 
-def figure_text(value, unit: str) -> str:
-    shown = str(value) if isinstance(value, bool) else f"{value:.4g}" if isinstance(value, float) else str(value)
+def figure_text(value, unit: str, bound=None) -> str:
+    """A figure to 4 significant digits, or 6 within 1 % of its bound (99.9999 against 99.99 is not 100)."""
+    digits = 6 if isinstance(bound, (int, float)) and abs(value - bound) <= 0.01 * abs(bound) else 4
+    shown = f"{value:.{digits}g}" if isinstance(value, float) else str(value)
     return shown + (f" {unit}" if unit else "")
 
 
@@ -148,7 +150,7 @@ def table(records: list[dict]) -> str:
             key = (record["benchmark"], record["date"])
             sources.setdefault(key, (len(sources) + 1, record))
             mark = "**MISS**" if entry["verdict"] == "MISS" else "PASS"
-            lines.append(f"| `{benchmark}.py` | {name} | {figure_text(entry['figure'], entry['unit'])} | "
+            lines.append(f"| `{benchmark}.py` | {name} | {figure_text(entry['figure'], entry['unit'], entry['bound'])} | "
                          f"{bound_text(entry)} | {mark} | {record['date'][:10]} [{sources[key][0]}] |")
     lines += ["", "## Where each figure was measured", ""]
     for number, record in sources.values():
