@@ -155,10 +155,12 @@ def table(records: list[dict]) -> str:
     lines += ["", "## Where each figure was measured", ""]
     for number, record in sources.values():
         machine = record["machine"]
-        load = ", ".join(f"{value:g}" for value in machine["load_average"]) if machine.get("load_average") else "?"
+        load = (f"load average {', '.join(f'{value:g}' for value in machine['load_average'])}"
+                if machine["load_average"]  # a transcribed result has the load as it was described, if it was
+                else f"load: {machine.get('load', 'not recorded')}")
         origin = f"; {record['source']}" if record.get("source") else ""
         lines.append(f"{number}. `{record['command']}`: {record['date']}, commit `{record['commit']}`, Blender "
-                     f"{record['blender']}, {machine['cores']} cores, load average {load}{origin}.")
+                     f"{record['blender']}, {machine['cores']} cores, {load}{origin}.")
     return "\n".join(lines) + "\n"
 
 
