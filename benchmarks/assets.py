@@ -401,8 +401,8 @@ def smooth_normal_errors(name: str, check, touching, settings: Settings) -> dict
     """For a flat-shaded object just baked per corner and validated (`check`): its RMS error against Cycles and
     the RMS error a bake with the smooth vertex normals has against the very same Cycles corners, over all
     corners and over those not touching the floor (mask `touching`). The second bake is of the same object after
-    Shade Smooth (one transfer per vertex, shown on each of its corners, as bakes before the shading-aware one
-    stored and showed it); Cycles is not run again. Same reference, same measure: only the normal the transfer
+    Shade Smooth (one transfer per vertex, shown on each of its corners: what a bake blind to the corner normals
+    stores and shows); Cycles is not run again. Same reference, same measure: only the normal the transfer
     was baked with differs."""
     ob = bpy.data.objects[name]
     corner_colours, passes, _ = compared_colours(check, ob)

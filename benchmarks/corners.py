@@ -66,12 +66,12 @@ def load(folder, package):
         sys.path.insert(0, folder)
     try:
         scene_bake = importlib.import_module(package + ".blender.scene_bake")
-    except ImportError:  # before the restructure
+    except ImportError:  # a revision of the older layout, one module for the scene's bake
         scene_bake = importlib.import_module(package + ".baking")
     for module, name in ((".blender.fingerprint", "fingerprints"), (".core.interpolation", "face_probes")):
         try:
             time_apart(importlib.import_module(package + module), name)
-        except ImportError:  # a revision before them
+        except ImportError:  # a revision without them: nothing to time apart
             pass
     # The saved settings' schema (each object's storage choice, which the bake reads), where a revision has one; a
     # second package finds it registered and leaves it.
@@ -125,10 +125,9 @@ def bake(asset, sides, bakes=1) -> list[dict]:
 def paired_ratio(asset, first, second, repeats, bakes) -> tuple[float, float, list, list]:
     """first ÷ second bake time: the median over every pair of bakes taken in turn in one process (`repeats` fresh
     processes of `bakes` pairs each); also each side's fastest bake over all, as a ratio; and both sides' runs.
-    Other tenants of this shared machine slow bakes down by up to 80 % for seconds at a time. Two bakes taken in
-    turn see the same machine, and the median pair drops the pairs one burst hit: the fastest bakes, which this
-    benchmark judged by before, need a quiet moment for each side, and in a noisy hour gave 1.33-1.84 for one
-    checkout where pairs gave 1.42-1.55."""
+    Other tenants of a shared machine slow bakes down by most of their speed for seconds at a time. Two bakes
+    taken in turn see the same machine, and the median pair drops the pairs one burst hit; the fastest bakes, printed
+    beside it, need a quiet moment for each side, which a busy hour may not have."""
     ones, twos = [], []
     for _ in range(repeats):
         one, two = bake(asset, [first, second], bakes)

@@ -12,8 +12,8 @@ depend on the engine's answers (a round's rays are fixed by the seed), so both e
    the passes; Embree ÷ BVHTree (goal ≥ 15×) on the demo and on the demo with its torus subdivided three times
    (1.4 M triangles), the rays of 2048 floor and wall vertices. Beside them a bare Python loop of BVHTree.ray_cast
    calls over the same rays, given as Python lists (the rate one call per ray allows, which the BVHTree engine's
-   map over ray_cast nearly reaches; issue 32's loop ran at half of it, as one over numpy rows does), and Embree ÷
-   that loop.
+   map over ray_cast nearly reaches; a loop over numpy rows, each parsed as a sequence, runs at half of it), and
+   Embree ÷ that loop.
 3. The whole demo bake at 256 samples with 2 workers: wall time, BVHTree ÷ Embree (goal ≥ 5×); and one process's
    bake split into casting (occluded, hits), the contact search (nearest, BVHTree in both) and the rest.
 4. Memory: resident memory each engine adds, built over the dense scene (the Embree engine holds the contact

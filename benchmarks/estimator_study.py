@@ -1,8 +1,8 @@
 """Estimator study: where the shadowed estimator's error at 256 rays per vertex comes from, and what moves it.
 
-The bake benchmark's goal is "ours ÷ seed ≤ 0.1 at 256 rays" (about 0.088 since flat occluders are integrated in
-closed form; 0.14 before). This study measures, on the same 300 occludable demo vertices and against the same kind
-of 16,384-ray reference:
+The bake benchmark's goal is "ours ÷ seed ≤ 0.1 at 256 rays", which its flat occluders, integrated in closed form,
+bring within reach. This study measures, on the same 300 occludable demo vertices and against the same kind of
+16,384-ray reference:
 
 1. replicates R = 2, 4, 8 at 256 rays: actual and estimated RMS error (fewer, denser lattices are more accurate);
 2. the error against rays at R = 4, its log-log slope, and the ray count at which ours ÷ seed reaches 0.1;

@@ -3,7 +3,7 @@ against Cycles and measured against a many-ray reference exactly as the benchmar
 
 Cases: woody.obj imported as a user imports it (flat-shaded), the low-poly UV sphere flat under a low sun, and a
 cylinder with Smooth by Angle. The bounds are loose versions of the full run's figures (4 × 64 Cycles samples,
-benchmarks/README.md), each derived in its test's docstring. The benchmark rests every asset on its floor, and a
+benchmarks/results/, tabled in docs/reference/benchmarks.md), each derived in its test's docstring. The benchmark rests every asset on its floor, and a
 face lying on the floor facing into it is where the bake still disagrees with Cycles: Cycles sees no light there,
 the bake lights it from below the floor (its ray origins move along the normal, through the floor). That is an
 open problem the benchmark shows; here the agreement is asserted without those vertices and corners, and the
@@ -119,7 +119,7 @@ def test_a_flat_sphere_agrees_with_cycles_far_better_than_its_smooth_normal_bake
     """Like for like: one Cycles reference, the flat sphere as Blender shades it, corner by corner, under a low
     sun (θ 75°, its terminator across the sphere); two bakes of the same geometry judged against it in the same
     measure. The shading-aware bake (one transfer per corner normal) against the bake a smooth vertex normal gives,
-    stored once per vertex and shown on each of its corners (what bakes before the shading-aware one did). Off
+    stored once per vertex and shown on each of its corners (a bake blind to the corner normals). Off
     the floor the first is exact up to Cycles' noise (full run 0.00 % RMS, at 4 × 16 samples 0-1.5 %), the second
     is 12.1 % off (12.0-12.1 % at 4 × 16: far above the noise). Bounds: ≤ 3 % (as for every small case) against
     ≥ 6 % (half the measured), and at least 3 × apart."""
@@ -148,7 +148,7 @@ def test_the_estimate_is_exact_where_the_bake_is_and_honest_elsewhere(measured):
 def test_the_estimate_is_honest_on_the_cow(empty_scene):
     """The cow, flat-shaded, shadows itself (legs, head, ears): a bake with real noise. Its estimated RMS error is
     within 1.5 × of the actual error against a 16 × reference at the same shading points (the issue's goal; the
-    full run at 256 rays gives the ratio in benchmarks/README.md). No Cycles here."""
+    full run's ratio at 256 rays is in docs/reference/benchmarks.md). No Cycles here."""
     names = assets.build_case(assets.case_named("cow"))
     scene_bake = assets.bake_scene(names, FAST)
     reference = assets.reference_error(scene_bake, FAST)

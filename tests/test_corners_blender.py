@@ -151,8 +151,8 @@ def test_the_normals_overlay_draws_one_line_per_corner_normal(empty_scene, prt):
 
 def test_a_flat_shaded_sphere_agrees_with_cycles_corner_by_corner(empty_scene, prt):
     """A flat low-poly sphere over a plane: Cycles bakes each corner with its face's normal. Per corner, PRT agrees
-    to 0.35 % RMS (4 × 32 Cycles samples, measured); the per-vertex bake of before, whose smooth normals Cycles'
-    corners never use, was 1.28 % off on the same scene (and more under a low sun)."""
+    to 0.35 % RMS (4 × 32 Cycles samples, measured); a per-vertex bake, whose smooth normals Cycles' corners never
+    use, is 1.28 % off on the same scene (and more under a low sun)."""
     bpy.ops.mesh.primitive_plane_add(size=6)
     bpy.ops.mesh.primitive_uv_sphere_add(segments=16, ring_count=8, location=(0, 0, 1.1))
     bpy.ops.object.select_all(action="DESELECT")
@@ -167,7 +167,7 @@ def test_a_flat_shaded_sphere_agrees_with_cycles_corner_by_corner(empty_scene, p
 
 def test_blenders_own_flat_suzanne_agrees_with_cycles_triangle_by_triangle(empty_scene, prt):
     """Suzanne as Blender adds her: flat, with quads that are not planar. Cycles shades each triangle of a flat face
-    with its own normal; baked with the face's mean plane instead she was 13.1 % RMS (p99 57 %) off Cycles, with
+    with its own normal; baked with the face's mean plane instead she is 13.1 % RMS (p99 57 %) off Cycles, with
     each triangle's normal 5.8 % (p99 19.5 %; measured 4 × 64 samples), the rest where her eyes pass through her
     head (docs/cycles_conventions.md)."""
     bpy.ops.mesh.primitive_plane_add(size=6)
@@ -265,8 +265,9 @@ def test_a_smooth_sphere_resting_on_its_pole_is_black_there_and_agrees_with_cycl
     meets the floor at once, and Cycles renders it black. Its faces rise from it as a cone, so a step along them
     climbs straight up a whole ray offset, out of the floor's reach; the floor is found from the vertex itself
     (the faces meeting there are its own surface, not one it touches), and the hull test, which a floor coplanar
-    with the pole's tangent plane passes, no longer calls it open sky. Measured: the pole's transfer 0 (it was the
-    unshadowed lobe, 89 % off Cycles), the sphere 0.3 % RMS against 4 × 64 samples (8.3 % before)."""
+    with the pole's tangent plane passes, is skipped for a point touching a surface, so it is not called open sky.
+    Measured: the pole's transfer 0 (the unshadowed lobe there would be 89 % off Cycles), the sphere 0.3 % RMS
+    against 4 × 64 samples."""
     bpy.ops.mesh.primitive_plane_add(size=6)
     bpy.ops.mesh.primitive_uv_sphere_add(segments=16, ring_count=8, location=(0, 0, 1.0))
     sphere = bpy.context.active_object

@@ -118,7 +118,7 @@ def test_a_billion_shards_are_told_missing_in_one_short_line_at_once():
     assert found == ["missing shards 2/1000000000, 4/1000000000, 5/1000000000, 6/1000000000, 7/1000000000, "
                      "8/1000000000, 9/1000000000, 10/1000000000 and 999999990 more (N = 1000000000 in p1 and 1 "
                      "other part)"]
-    assert time.perf_counter() - started < 1.0  # not a list of N shards (on the old code: minutes, 23 GB)
+    assert time.perf_counter() - started < 1.0  # not a list of N shards (minutes and 23 GB to build)
     assert shards.refusals([part("p1", 1, count=2)], info(0, 2)) == ["missing shard 2/2"]
 
 
