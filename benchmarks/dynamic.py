@@ -17,7 +17,8 @@ The object's own estimate is its bake's est. RMS rel. error (of the transfer, ag
 
 Goals: at every rotation RMS ≤ 2 % and p99 ≤ 10 % against Cycles (the assets' goals).
 
-Run from the repository root:  .venv/bin/python benchmarks/dynamic.py [--quick] [--samples N] [--passes N] [--json [DIR]]
+Run from the repository root:  .venv/bin/python benchmarks/dynamic.py [--quick] [--samples N] [--passes N]
+[--json [DIR]]
 """
 
 import argparse

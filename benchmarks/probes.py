@@ -255,7 +255,8 @@ def live(args):
           f"ms, colour write {parts['write']:.1f} ms")
     print(f"per update at {len(ob.data.vertices):,} vertices and {probes:,} probes: {cpu:.1f} ms   goal <= "
           f"{GOAL_MS:.0f} ms   {result_files.verdict(cpu, '<=', GOAL_MS)}")
-    print(f"8 lights ÷ 1 light (one moving): {ratio:.2f}   goal <= {GOAL_RATIO}   {result_files.verdict(ratio, '<=', GOAL_RATIO)}")
+    print(f"8 lights ÷ 1 light (one moving): {ratio:.2f}   goal <= {GOAL_RATIO}   "
+          f"{result_files.verdict(ratio, '<=', GOAL_RATIO)}")
     return {"vertices": len(ob.data.vertices), "probes": probes, "cpu_ms": cpu, "wall_ms": one, "ratio": ratio,
             "wall_ratio": wall_ratio, "full_ms": full, "parts_cpu_ms": parts}
 

@@ -150,7 +150,8 @@ def table(records: list[dict]) -> str:
             key = (record["benchmark"], record["date"])
             sources.setdefault(key, (len(sources) + 1, record))
             mark = "**MISS**" if entry["verdict"] == "MISS" else "PASS"
-            lines.append(f"| `{benchmark}.py` | {name} | {figure_text(entry['figure'], entry['unit'], entry['bound'])} | "
+            figure = figure_text(entry["figure"], entry["unit"], entry["bound"])
+            lines.append(f"| `{benchmark}.py` | {name} | {figure} | "
                          f"{bound_text(entry)} | {mark} | {record['date'][:10]} [{sources[key][0]}] |")
     lines += ["", "## Where each figure was measured", ""]
     for number, record in sources.values():

@@ -3,11 +3,11 @@ against Cycles and measured against a many-ray reference exactly as the benchmar
 
 Cases: woody.obj imported as a user imports it (flat-shaded), the low-poly UV sphere flat under a low sun, and a
 cylinder with Smooth by Angle. The bounds are loose versions of the full run's figures (4 × 64 Cycles samples,
-benchmarks/results/, tabled in docs/reference/benchmarks.md), each derived in its test's docstring. The benchmark rests every asset on its floor, and a
-face lying on the floor facing into it is where the bake still disagrees with Cycles: Cycles sees no light there,
-the bake lights it from below the floor (its ray origins move along the normal, through the floor). That is an
-open problem the benchmark shows; here the agreement is asserted without those vertices and corners, and the
-tests check that they are exactly the ones on the floor.
+benchmarks/results/, tabled in docs/reference/benchmarks.md), each derived in its test's docstring. The benchmark
+rests every asset on its floor, and a face lying on the floor facing into it is where the bake still disagrees with
+Cycles: Cycles sees no light there, the bake lights it from below the floor (its ray origins move along the normal,
+through the floor). That is an open problem the benchmark shows; here the agreement is asserted without those
+vertices and corners, and the tests check that they are exactly the ones on the floor.
 """
 
 import bpy
