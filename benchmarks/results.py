@@ -144,15 +144,20 @@ def table(records: list[dict]) -> str:
              "`benchmarks/README.md`. Figures are from machines shared with other work: ratios measured side by "
              "side in one run, each with its load average.", "",
              "| benchmark | goal | figure | bound | verdict | measured |", "| --- | --- | ---: | --- | --- | --- |"]
-    sources = {}
-    for benchmark, goals in sorted(current_goals(records).items()):
-        for name, (entry, record) in goals.items():
-            key = (record["benchmark"], record["date"])
-            sources.setdefault(key, (len(sources) + 1, record))
+    sources, goals = {}, current_goals(records)
+    latest = {record["benchmark"]: record for record in records}
+    for benchmark in sorted(set(goals) | set(latest)):
+        if benchmark not in goals:  # a study without goals: its figures are its rows
+            record = latest[benchmark]
+            number = sources.setdefault((benchmark, record["date"]), (len(sources) + 1, record))[0]
+            lines.append(f"| `{benchmark}.py` | no goal: its rows in `benchmarks/results/{record['date'][:10]}-"
+                         f"{benchmark}.json` | | | | {record['date'][:10]} [{number}] |")
+        for name, (entry, record) in goals.get(benchmark, {}).items():
+            number = sources.setdefault((benchmark, record["date"]), (len(sources) + 1, record))[0]
             mark = "**MISS**" if entry["verdict"] == "MISS" else "PASS"
             figure = figure_text(entry["figure"], entry["unit"], entry["bound"])
-            lines.append(f"| `{benchmark}.py` | {name} | {figure} | "
-                         f"{bound_text(entry)} | {mark} | {record['date'][:10]} [{sources[key][0]}] |")
+            lines.append(f"| `{benchmark}.py` | {name} | {figure} | {bound_text(entry)} | {mark} | "
+                         f"{record['date'][:10]} [{number}] |")
     lines += ["", "## Where each figure was measured", ""]
     for number, record in sources.values():
         machine = record["machine"]
