@@ -36,7 +36,7 @@ RELATIONS = {
     "==": lambda figure, bound: figure == bound,
     "within": lambda figure, bound: abs(figure - 1.0) <= bound,  # a ratio within ± bound of 1
 }
-SHOWN = {"<=": "≤", ">=": "≥", "==": "=", "within": "within ±"}
+SHOWN = {"<=": "≤", ">=": "≥", "==": "="}  # "within" is shown as its own words (bound_text)
 
 
 def add_argument(parser: argparse.ArgumentParser):
