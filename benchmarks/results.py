@@ -2,8 +2,8 @@
 
 A run with `--json` writes benchmarks/results/<YYYY-MM-DD>-<benchmark>.json (or the same name in the folder given
 after `--json`): when and where it ran (UTC time, git commit, cores and load average, Blender), its command line,
-the rows it measured and each goal with its figure, bound and PASS or MISS. A file is written whole or not at all;
-a second run of a benchmark on one day replaces that day's file. Smoke runs (`--quick`) measure nothing a goal is
+the rows it measured and each goal with its figure, bound and PASS or MISS. A file is written whole or not at all,
+and never over another: a later run of a benchmark on the same day is <YYYY-MM-DD>-<benchmark>-2.json, -3, .... Smoke runs (`--quick`) measure nothing a goal is
 for: they may write only into a folder given to them, and the table leaves them out.
 
     .venv/bin/python benchmarks/results.py --table   # writes docs/reference/benchmarks.md from the results
@@ -69,11 +69,13 @@ def plain(value):
 
 
 def commit() -> str:
-    """The checkout's commit, with `+changes` when its tracked files differ from it."""
+    """The checkout's commit, with `+changes` when its tracked files differ from it (results written since are not
+    changes to what is measured)."""
     def git(*arguments):
         return subprocess.run(["git", *arguments], cwd=ROOT, capture_output=True, text=True).stdout.strip()
     head = git("rev-parse", "--short=12", "HEAD") or "unknown"
-    return head + ("+changes" if git("status", "--porcelain", "--untracked-files=no") else "")
+    changed = git("status", "--porcelain", "--untracked-files=no", "--", ".", ":!benchmarks/results")
+    return head + ("+changes" if changed else "")
 
 
 def blender_version() -> str:
@@ -100,7 +102,11 @@ def write(benchmark: str, args, rows, goals: list, argv=None) -> Path:
         "rows": plain(rows),
         "goals": goals,
     }
-    path = Path(args.json) / f"{now:%Y-%m-%d}-{benchmark}.json"
+    folder, name = Path(args.json), f"{now:%Y-%m-%d}-{benchmark}"
+    path, count = folder / f"{name}.json", 1
+    while path.exists():  # a run of other sections the same day keeps the first one's figures
+        count += 1
+        path = folder / f"{name}-{count}.json"
     write_json(str(path), record)
     print(f"wrote {path}")
     return path

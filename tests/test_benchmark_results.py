@@ -4,6 +4,7 @@ table generated from them, which must be what the files in benchmarks/results/ g
 import argparse
 import json
 from pathlib import Path
+import re
 
 import pytest
 
@@ -32,7 +33,7 @@ def test_the_table_page_is_current():
 def test_each_stored_result_is_whole_and_its_verdicts_are_its_figures(path):
     entry = json.loads(path.read_text(encoding="utf-8"))
     assert KEYS <= set(entry) and not entry["quick"], path.name
-    assert path.name == f"{entry['date'][:10]}-{entry['benchmark']}.json"
+    assert re.fullmatch(rf"{entry['date'][:10]}-{entry['benchmark']}(-[2-9]|-[1-9]\d+)?\.json", path.name)
     assert (ROOT / "benchmarks" / f"{entry['benchmark']}.py").is_file()
     names = [goal["name"] for goal in entry["goals"]]
     assert len(names) == len(set(names)), names
@@ -72,6 +73,8 @@ def test_a_result_is_written_whole_where_json_asks(tmp_path):
     assert KEYS <= set(entry) and entry["rows"] == {"ms": [1.5, 2]} and entry["quick"] is True
     assert entry["command"] == f"benchmarks/relight.py --quick --json {tmp_path}"
     assert path.name == f"{entry['date'][:10]}-relight.json"
+    again = results.write("relight", args, {}, [], [])  # a second run the same day keeps the first one's file
+    assert again.name == f"{entry['date'][:10]}-relight-2.json" and json.loads(path.read_text()) == entry
 
 
 def test_a_smoke_run_may_not_write_into_the_results(capsys):
