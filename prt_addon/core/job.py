@@ -291,7 +291,8 @@ class TransferJob(Job):
         if self.occluders is None or not len(self.occluders.triangles):
             return [0] * len(results)
         scale = lobes.unshadowed_norm(self.settings.order)
-        black = [(r.rules == rules.MEASURED) & (np.abs(s.normals).sum(1) > 0)
+        # Rays > 0: a farm shard holds zeros for the points other shards bake, which are not black.
+        black = [(r.rules == rules.MEASURED) & (r.rays > 0) & (np.abs(s.normals).sum(1) > 0)
                  & (np.linalg.norm(r.transfer.reshape(len(r.rules), -1), axis=1)
                     <= NOISE_SPREAD * r.std_error + BLACK * scale)
                  for s, r in zip(receivers, results)]

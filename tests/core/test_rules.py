@@ -5,7 +5,7 @@ black rule's doubt, the sky it may have left out, joins the estimate."""
 
 import numpy as np
 
-from prt_addon.core import bake, corners, job, lobes, polygons, rules
+from prt_addon.core import bake, corners, executors, job, lobes, polygons, rules
 
 FLOOR = bake.Occluders(np.array([[-5.0, -5.0, 0.0], [5.0, -5.0, 0.0], [5.0, 5.0, 0.0], [-5.0, 5.0, 0.0]]),
                        np.array([[0, 1, 2], [0, 2, 3]]), np.array([[-5.0, -5.0, 0.0], [5.0, 5.0, 0.0]]),
@@ -151,3 +151,10 @@ def test_points_inside_another_part_are_measured_black_and_counted_apart_from_th
     assert summary.inside_another_part == 8 and summary.per_object["inner"]["inside_another_part"] == 8
     assert summary.per_object["outer"]["inside_another_part"] == 0 and summary.decided_by_rule == {}
     assert "; 8 points inside another part (black)" in summary.line()
+    # A farm shard holds zeros for the points the other shards bake: it counts only the points it measured.
+    counted = []
+    for shard in (1, 2):
+        sharded = job.TransferJob(receivers, occluders, bake.BakeSettings(order=2, samples=16),
+                                  executors.FarmShard((shard, 2)))
+        counted.append(sharded.summary(sharded.run()).inside_another_part)
+    assert sum(counted) == 8
