@@ -22,7 +22,8 @@ from prt_addon.core import heatmap
 from prt_addon.core.colour import linear_to_srgb
 
 DPI = 100
-COLOURS = 256  # a figure's PNG is quantised to this many colours: renders stay under ~300 KB at 1200 px wide
+LARGEST_PNG = 300_000  # bytes of a figure in true colour; a larger one is quantised to COLOURS colours
+COLOURS = 256
 WORKERS = 2  # the machine's cores
 SCALE_STEPS = 256  # of a heatmap's colour scale
 DEMO_SAMPLES = {"full": 256, "quick": 32}  # rays per vertex of the demo's bake (prt demo's default: 256)
@@ -130,9 +131,13 @@ def save(figure, path) -> str:
 
 
 def save_png(source, path) -> str:
-    """Writes the PNG read from `source` (a path or a file) as a palette PNG at `path` (COLOURS colours,
-    dithered): a render's gradients keep their look at a fraction of a true-colour PNG's size."""
+    """Writes the PNG read from `source` (a path or a file) at `path`: in true colour where that is at most
+    LARGEST_PNG bytes, else as a palette PNG (COLOURS colours, dithered), where a render's gradients keep their
+    look at a fraction of the size."""
     with Image.open(source) as image:
-        image.convert("RGB").quantize(COLOURS, method=Image.Quantize.MEDIANCUT,
-                                      dither=Image.Dither.FLOYDSTEINBERG).save(path, optimize=True)
+        rgb = image.convert("RGB")
+    rgb.save(path, optimize=True)
+    if os.path.getsize(path) > LARGEST_PNG:
+        rgb.quantize(COLOURS, method=Image.Quantize.MEDIANCUT, dither=Image.Dither.FLOYDSTEINBERG).save(
+            path, optimize=True)
     return path
