@@ -6,7 +6,7 @@ from dataclasses import dataclass
 import io
 import os
 
-import bpy
+import bpy  # noqa: F401  (before mathutils, which bpy_extras and this module import)
 from bpy_extras.object_utils import world_to_camera_view
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
@@ -37,8 +37,9 @@ class Run:
     scratch: str
     _demo: str | None = None
 
-    def pick(self, full, quick):
-        return quick if self.quick else full
+    def pick(self, choices: dict):
+        """choices["quick"] in the quick run, else choices["full"]."""
+        return choices["quick" if self.quick else "full"]
 
     def path(self, name: str) -> str:
         return os.path.join(self.out, name)
@@ -48,7 +49,7 @@ class Run:
         following the Sun object and a sky, the PRT display on), baked on the first call."""
         if self._demo is None:
             path = os.path.join(self.scratch, "demo_baked.blend")
-            save_baked_demo(path, WORKERS, self.pick(*DEMO_SAMPLES.values()))
+            save_baked_demo(path, WORKERS, self.pick(DEMO_SAMPLES))
             self._demo = path
         return self._demo
 

@@ -30,8 +30,8 @@ NAME = "dynamic_limits.png"
 ORDER = 8  # a band-limited sun sharp enough that its own penumbra at the spheres is narrower than the probe spacing
 SUN = {"theta": math.radians(35.0), "phi": 0.0, "angular_radius": 0.05, "strength": 2.0}  # from +X, 55° up
 SKY = 0.1
-FULL = {"resolution": (480, 270), "bake_samples": 1024, "cycles_samples": 32}
-QUICK = {"resolution": (240, 136), "bake_samples": 512, "cycles_samples": 8}
+PRESETS = {"full": {"resolution": (480, 270), "bake_samples": 1024, "cycles_samples": 32},
+           "quick": {"resolution": (240, 136), "bake_samples": 512, "cycles_samples": 8}}
 SPHERE_ROW = np.linspace(-1.25, 1.25, 6)  # (b) the small spheres' y: the shadow edge is at y 0
 PROBE_Y = [-1.5, -0.5, 0.5, 1.5]
 SPHERE_X, SPHERE_HEIGHT, SPHERE_RADIUS = -0.3, 0.5, 0.12
@@ -180,6 +180,6 @@ def baked_and_rendered(scene, preset, folder):
 
 
 def make(run) -> str:
-    preset = run.pick(FULL, QUICK)
+    preset = run.pick(PRESETS)
     panels = [shadow_panel(preset, run.scratch), edge_panel(preset, run.scratch)]
     return write_figure(run.path(NAME), panels)

@@ -35,7 +35,7 @@ SCALES = {"ERROR": "estimated relative error", "DIFFERENCE": "error against Cycl
 def make(run) -> str:
     open_file(run.demo_blend(), required=True)
     context, scene = bpy.context, bpy.context.scene
-    validation = Validation(context, *run.pick(*VALIDATION.values()))
+    validation = Validation(context, *run.pick(VALIDATION))
     comparisons = validation.run(log=lambda line: None)
     validation.store_errors(comparisons)  # as the Validation panel's button does: the Difference heatmap's values
     print("heatmap: validated: " + validation.lines(comparisons)[0])
@@ -46,7 +46,7 @@ def make(run) -> str:
         relighter = Relighter()
         relighter.refresh(scene, context.evaluated_depsgraph_get())
         path = os.path.join(run.scratch, f"heatmap_{mode.lower()}.png")
-        render(scene, path, "WORKBENCH", resolution=run.pick(*RESOLUTION.values()))
+        render(scene, path, "WORKBENCH", resolution=run.pick(RESOLUTION))
         values = np.concatenate([rows for rows, _ in filter(None, heatmaps.read(receivers, mode).values())])
         top = relighter.legend.top
         print(f"heatmap {TITLES[mode]}: scale {heatmap.range_label(top)}, RMS "

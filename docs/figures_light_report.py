@@ -52,7 +52,7 @@ def make(run) -> str:
     measured = np.sqrt(np.sum(weights * residual ** 2) / np.sum(weights * pixels ** 2))
     print(f"light report: measured on the image at order {order}: projection error {100 * measured:.1f} %")
 
-    rows = run.pick(*SHOWN_ROWS.values())
+    rows = run.pick(SHOWN_ROWS)
     shown = lobes.box_filtered(pixels, rows)
     totals, _ = scene_light(bpy.context, [order])
     reconstruction = lobes.reconstruct_equirect(totals[order], *shown.shape[:2])

@@ -30,7 +30,7 @@ DISC = 0.5  # of the tube's radius: the floor measured, well inside its shadow
 
 def make(run) -> str:
     blend = run.demo_blend()
-    resolution, samples = run.pick(*RESOLUTION.values()), run.pick(*SAMPLES.values())
+    resolution, samples = run.pick(RESOLUTION), run.pick(SAMPLES)
     renders = {}
     for moved in (False, True):
         aim = {"light_index": 0, "theta_deg": MOVED_SUN[0], "phi_deg": MOVED_SUN[1]} if moved else {}

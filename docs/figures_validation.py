@@ -26,8 +26,8 @@ CYCLES = {"full": (32, 2), "quick": (8, 2)}  # samples per pass, passes
 def make(run) -> str:
     open_file(run.demo_blend(), required=True)
     context = bpy.context
-    resolution = run.pick(*RESOLUTION.values())
-    samples, passes = run.pick(*CYCLES.values())
+    resolution = run.pick(RESOLUTION)
+    samples, passes = run.pick(CYCLES)
     difference_path = os.path.join(run.scratch, "validation_heatmap.png")
     report = validate_image(context, None, samples, passes, resolution, difference_path)
     print(report.line())

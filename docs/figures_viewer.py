@@ -31,7 +31,7 @@ def make(run) -> str:
     server = start_server(viewer, scene_path)
     try:
         with chromium() as browser:
-            page = open_viewer(browser, address(server), run.pick(*SIZE.values()))
+            page = open_viewer(browser, address(server), run.pick(SIZE))
             page.keyboard.press("l")  # the light vectors: the sun's arrow
             state = viewer_state(page)
             page.screenshot(path=screenshot)
