@@ -19,13 +19,13 @@ from prt_addon.blender.image_validation import band_limited_renders, render_sett
 from prt_addon.blender.validation import scene_light
 from prt_addon.commands.demo import save_baked_demo
 from prt_addon.core import heatmap
+from prt_addon.ui.heatmaps import SWATCHES
 from prt_addon.core.colour import linear_to_srgb
 
 DPI = 100
 LARGEST_PNG = 300_000  # bytes of a figure in true colour; a larger one is quantised to COLOURS colours
 COLOURS = 256
 WORKERS = 2  # the machine's cores
-SCALE_STEPS = 256  # of a heatmap's colour scale
 DEMO_SAMPLES = {"full": 256, "quick": 32}  # rays per vertex of the demo's bake (prt demo's default: 256)
 
 
@@ -110,8 +110,8 @@ def show_image(ax, srgb, title=None):
 
 
 def colour_scale(ax, top, label):
-    """The heatmaps' colour scale (core.heatmap) from 0 to `top`, in percent."""
-    ax.imshow(heatmap.legend_srgb(SCALE_STEPS)[None], aspect="auto", extent=(0.0, 100 * top, 0.0, 1.0))
+    """The heatmaps' colour scale from 0 to `top`, in percent: the swatches the Display panel's legend draws."""
+    ax.imshow(heatmap.legend_srgb(SWATCHES)[None], aspect="auto", extent=(0.0, 100 * top, 0.0, 1.0))
     ax.set_yticks([])
     ax.tick_params(labelsize=8)
     ax.set_xlabel(label, fontsize=8)
