@@ -1,7 +1,8 @@
-"""light_report.png: `prt light-report` on an HDRI that Blender bundles (its studio light "courtyard"): the image as
-an SH environment light (the Lights panel's Environment, as the image) beside its SH reconstruction at the order
-the report recommends, band-limited and windowed as the PRT display shows it (blender.validation.scene_light);
-below them the command's --plot and the figures it prints.
+"""light_report.png: `prt light-report` on an HDRI that Blender bundles (its studio light "sunrise", the Lights
+page's example): the image as an SH environment light (the Lights panel's Environment, as the image) beside its SH
+reconstruction at the order the report recommends, band-limited and windowed as the PRT display shows it
+(blender.validation.scene_light); below them the command's --plot and the figures it prints. The image's sun is
+sharp: no order meets the target, so the report recommends the highest and names the sun to split off.
 
 Printed, and read back by tests/test_figures.py: the command's lines (its table of the light's projection error and
 the predicted shading error per order, and the order recommended), and the projection error at that order measured
@@ -13,6 +14,7 @@ import contextlib
 import io
 import json
 import os
+import textwrap
 
 import bpy
 import numpy as np
@@ -25,7 +27,8 @@ from prt_addon.commands import cli
 from prt_addon.core import lobes
 
 NAME = "light_report.png"
-HDRI = "courtyard.exr"
+HDRI = "sunrise.exr"
+TEXT_COLUMNS = 84  # the printed lines wrap here, to fit beside the plot
 SHOWN_ROWS = {"full": 256, "quick": 64}  # the panels' equirect height
 
 
@@ -69,8 +72,9 @@ def make(run) -> str:
     plotted.set_axis_off()  # the plot has its own frame
     text = figure.add_subplot(grid[1, 1])
     text.set_axis_off()
-    text.text(0.0, 1.0, "$ prt light-report FILE --plot PLOT.png\n" + "\n".join(lines), va="top",
-              family="monospace", fontsize=8.5, transform=text.transAxes)
+    wrapped = [part for line in lines for part in textwrap.wrap(line, TEXT_COLUMNS, subsequent_indent="      ")]
+    text.text(0.0, 1.0, "$ prt light-report FILE --plot PLOT.png\n" + "\n".join(wrapped), va="top",
+              family="monospace", fontsize=8.5, transform=text.transAxes).set_in_layout(False)
     return save(figure, run.path(NAME))
 
 
