@@ -19,8 +19,8 @@ from prt_addon.blender.image_validation import band_limited_renders, render_sett
 from prt_addon.blender.validation import scene_light
 from prt_addon.commands.demo import save_baked_demo
 from prt_addon.core import heatmap
-from prt_addon.ui.heatmaps import SWATCHES
 from prt_addon.core.colour import linear_to_srgb
+from prt_addon.ui.heatmaps import SWATCHES
 
 DPI = 100
 LARGEST_PNG = 300_000  # bytes of a figure in true colour; a larger one is quantised to COLOURS colours
