@@ -28,6 +28,7 @@ ESTIMATE_FACTOR = 3.0  # the estimated error's RMS within this factor of the mea
 ESTIMATE_HONEST = 0.05  # the committed study's estimated ÷ actual error, within this of 1: seen 0.983-1.004
 PROJECTION_AGREES = 0.02  # the light's projection error: the command's (band powers) and the image's own, apart
 DEMO_VERTICES, DEMO_LIGHTS = 13575, 2  # the demo scene's baked vertices (glTF adds seams), its sun and sky
+VIEWER_SUN = (40.0, 120.0)  # θ, φ in degrees: the demo's moved sun, where the viewer's figure aims it
 
 
 @pytest.fixture(scope="module")
@@ -104,8 +105,10 @@ def test_the_light_reports_projection_error_is_the_images_own(made):
 
 def test_the_viewer_drew_the_demo(made):
     _, printed = made
-    vertices, lights = found(rf"^viewer: drew {NUMBER} vertices under {NUMBER} lights", printed)
+    vertices, lights, theta, phi = found(rf"^viewer: drew {NUMBER} vertices under {NUMBER} lights, the active one a "
+                                         rf"sun at θ {NUMBER}°, φ {NUMBER}°", printed)
     assert vertices >= DEMO_VERTICES and lights == DEMO_LIGHTS, printed
+    assert (theta, phi) == VIEWER_SUN, printed  # aimed by the page's parameters
 
 
 def test_a_dynamic_object_casts_no_shadow_in_prt_but_does_in_cycles(made):
