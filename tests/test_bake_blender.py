@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 from conftest import ROOT, run_cli
+from interrupts import ctrl_c_reaches
 from prt_addon.blender import storage
 from prt_addon.blender.scene_bake import SceneBake
 from prt_addon.core import lobes
@@ -279,7 +280,7 @@ def test_cli_bake_interrupted_exits_1_with_one_line_and_leaves_the_file(tmp_path
     before = path.read_bytes()
     command = [sys.executable, "-m", "prt_addon", "bake", str(path), "--samples", "16384", "--workers", "2"]
     process = subprocess.Popen(command, cwd=ROOT, env=dict(os.environ, PYTHONPATH=str(ROOT)),
-                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, preexec_fn=ctrl_c_reaches)
     try:
         for line in process.stdout:  # the bake is under way once it reports progress
             if "left" in line:

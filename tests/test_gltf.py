@@ -19,6 +19,7 @@ from browser import chromium, open_viewer, viewer_state
 from conftest import ROOT, add_light, run_cli
 from gltf_files import (accessor, baked_and_saved, exported, extras_problems, light_from_extras, read_glb,
                         validator_issues)
+from interrupts import ctrl_c_reaches
 from pictures import read_png, rms_over_objects, shot
 from core.rotations import matrix_from_euler_zyz
 from prt_addon.blender import lights, sample_scenes
@@ -435,7 +436,7 @@ def test_a_mouse_drag_orbits_the_camera_and_leaves_the_lights(demo_url, browser,
 def test_prt_view_exports_serves_on_loopback_and_stops(demo_file):
     process = subprocess.Popen([sys.executable, "-m", "prt_addon", "view", str(demo_file)], cwd=ROOT,
                                env={**os.environ, "PYTHONPATH": str(ROOT)},
-                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, preexec_fn=ctrl_c_reaches)
     try:
         line = ""
         while "viewer at" not in line:

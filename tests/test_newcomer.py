@@ -24,6 +24,7 @@ import numpy as np
 import pytest
 
 from conftest import EXTENSION_ID, ROOT
+from interrupts import ctrl_c_reaches
 
 # The commands render with EEVEE and Cycles (about two minutes), the same on every Blender: once per CI run.
 pytestmark = pytest.mark.study
@@ -82,7 +83,8 @@ def serve_and_stop(command: str, folder: Path, env: dict) -> dict:
     """Starts the viewer's server as printed, fetches its page and the scene it serves, then stops it as a user
     does, with Ctrl+C (SIGINT to its process group)."""
     server = subprocess.Popen(["bash", "-c", command], cwd=folder, env=env, stdout=subprocess.PIPE,
-                              stderr=subprocess.STDOUT, text=True, start_new_session=True)
+                              stderr=subprocess.STDOUT, text=True, start_new_session=True,
+                              preexec_fn=ctrl_c_reaches)
     printed, address = [], None
     try:
         for line in server.stdout:
