@@ -20,6 +20,7 @@ from prt_addon.blender.validation import scene_light
 from prt_addon.commands.demo import save_baked_demo
 from prt_addon.core import heatmap
 from prt_addon.core.colour import linear_to_srgb
+from prt_addon.core.outputs import replacing
 from prt_addon.ui.heatmaps import SWATCHES
 
 DPI = 100
@@ -134,11 +135,12 @@ def save(figure, path) -> str:
 def save_png(source, path) -> str:
     """Writes the PNG read from `source` (a path or a file) at `path`: in true colour where that is at most
     LARGEST_PNG bytes, else as a palette PNG (COLOURS colours, dithered), where a render's gradients keep their
-    look at a fraction of the size."""
+    look at a fraction of the size. Written whole or not at all: the committed figure stays until the new one is."""
     with Image.open(source) as image:
         rgb = image.convert("RGB")
-    rgb.save(path, optimize=True)
-    if os.path.getsize(path) > LARGEST_PNG:
-        rgb.quantize(COLOURS, method=Image.Quantize.MEDIANCUT, dither=Image.Dither.FLOYDSTEINBERG).save(
-            path, optimize=True)
+    with replacing(str(path)) as temporary:
+        rgb.save(temporary, format="PNG", optimize=True)
+        if os.path.getsize(temporary) > LARGEST_PNG:
+            rgb.quantize(COLOURS, method=Image.Quantize.MEDIANCUT, dither=Image.Dither.FLOYDSTEINBERG).save(
+                temporary, format="PNG", optimize=True)
     return path

@@ -17,6 +17,7 @@ sys.path[:0] = [str(ROOT), str(ROOT / "docs")]  # this checkout's add-on, and do
 import bpy  # noqa: E402,F401  (before mathutils, which the add-on's core uses)
 
 from gen import commands_page, gltf_page, gltf_schema, layout_page, settings_page  # noqa: E402
+from prt_addon.core.outputs import replacing  # noqa: E402
 
 REFERENCE = ROOT / "docs" / "reference"
 
@@ -49,7 +50,8 @@ def main(argv=None) -> int:
                   file=sys.stderr)
         return 1 if outdated else 0
     for path in outdated:
-        path.write_text(written[path], encoding="utf-8")
+        with replacing(str(path)) as temporary:  # whole or not at all, as every file the add-on writes
+            Path(temporary).write_text(written[path], encoding="utf-8")
         print(f"gen_reference: wrote {path.relative_to(ROOT)}")
     return 0
 
