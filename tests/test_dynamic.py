@@ -115,7 +115,8 @@ def test_a_turned_torus_matches_a_static_bake_of_it_at_that_turn(empty_scene):
     torus = bpy.context.object
     torus.prt_dynamic = True
     dynamic = bake_now(["Torus"], samples=512)
-    transfer = storage.read_transfer(torus.data)[0].astype(np.float64)
+    # Baked to the order its probes carry light to; under the distant light alone its higher coefficients are unlit.
+    transfer = storage.read_transfer(torus.data)[0].astype(np.float64)[:, :ORDER ** 2]
     sigma = dynamic.results.results[0].std_error
     theta, phi, strength = SUN
     light = strength * sun_coefficients(ORDER, direction_from_angles(theta, phi), 0.05)

@@ -21,7 +21,7 @@ from test_gltf_probes import (ORDER, START, TO_GLTF, browser, compare, node_matr
 from browser import open_viewer, viewer_state
 from prt_addon.blender import probe_volumes
 from prt_addon.commands.view import VIEWER, address, start_server, stop_server
-from prt_addon.core import probe_grid, rotation, shading
+from prt_addon.core import probe_grid, rotation, sh, shading
 
 __all__ = ["browser", "probe_file", "probe_glb"]  # fixtures this module uses from test_gltf_probes
 
@@ -42,10 +42,11 @@ def vertex_glb(vertex_file):
     return exported(vertex_file, "; dynamic: Suzanne; lit per vertex: Suzanne; probe volumes: PRT Probe Volume;")
 
 
-def shaded_per_vertex(volumes, positions, transfer, channels, light, turn) -> np.ndarray:
+def shaded_per_vertex(volumes, positions, transfer, channels, light, turn, order) -> np.ndarray:
     """(V, 3) by the README's rules: each point's light through the smallest cube holding it (trilinear over the
-    valid probes), else the distant light, turned into the object's frame, shading its transfer row."""
-    n2 = light.shape[1]
+    valid probes), else the distant light, to the transfer's `order` (zeros above, or cut), turned into the object's
+    frame, shading its transfer row."""
+    n2 = order * order
     rows = transfer[:, :n2] if channels == 1 else transfer[:, :3 * n2].reshape(-1, 3, n2)
     found = []
     for point, row in zip(positions, rows):
@@ -57,13 +58,14 @@ def shaded_per_vertex(volumes, positions, transfer, channels, light, turn) -> np
                 indices, weights = probe_grid.trilinear_weights(local, resolution, valid)
                 arriving = probe_grid.blend(probe_grid.probe_lights(matrices, light), indices, weights)
                 smallest = size
-        found.append(shading.shade(row[None], rotation.rotate(arriving, turn.T))[0])
+        found.append(shading.shade(row[None], rotation.rotate(sh.fitted(arriving, n2), turn.T))[0])
     return np.array(found)
 
 
 def test_the_viewers_per_vertex_light_is_the_add_ons():
     """viewer/probes.js vertexRadiance against core.probe_grid and core.rotation: two nested volumes (the smaller
-    takes its points), invalid probes, points outside both, grey and coloured transfer."""
+    takes its points), invalid probes, points outside both, grey and coloured transfer, to the probes' received
+    order and below it."""
     rng = np.random.default_rng(5)
     volumes, request = [], []
     for scale, resolution in ((np.diag([3.0, 2.0, 2.5]), (3, 2, 4)), (np.diag([0.8, 0.9, 0.7]), (2, 3, 2))):
@@ -72,23 +74,23 @@ def test_the_viewers_per_vertex_light_is_the_add_ons():
         placement[:3, :3] = rotation.quaternion_to_matrix(rng.normal(size=4)) @ scale
         placement[:3, 3] = rng.normal(size=3) * 0.2
         valid = rng.random(count) > 0.25
-        matrices = rng.normal(size=(count, 3, 9, 9)).astype(np.float32)
+        matrices = rng.normal(size=(count, 3, 25, 9)).astype(np.float32)  # order 3 to order 5
         volumes.append((placement, resolution, valid, matrices.astype(np.float64)))
-        request.append({"volume": {"name": f"V{len(request)}", "order": 3, "channels": 3,
+        request.append({"volume": {"name": f"V{len(request)}", "order": 3, "received_order": 5, "channels": 3,
                                    "resolution": list(resolution), "valid": valid.astype(int).tolist(),
                                    "placement": placement.ravel().tolist()},
                         "matrices": matrices.ravel().tolist()})
     positions = np.vstack([rng.uniform(-3.5, 3.5, size=(300, 3)), rng.uniform(-0.8, 0.8, size=(100, 3))])
     light, turn = rng.normal(size=(3, 9)), rotation.quaternion_to_matrix(rng.normal(size=4))
-    for channels in (1, 3):
-        stride = 4 * -(-channels * 9 // 4)
+    for channels, order in ((1, 5), (3, 5), (1, 3)):
+        stride = 4 * -(-channels * order * order // 4)
         transfer = rng.normal(size=(len(positions), stride)).astype(np.float32)
         done = subprocess.run(["node", str(ROOT / "tests" / "js" / "probe_radiance.mjs")], input=json.dumps({
             "volumes": request, "positions": positions.ravel().tolist(), "transfer": transfer.ravel().tolist(),
-            "stride": stride, "channels": channels, "light": light.tolist(), "turn": turn.tolist()}),
+            "stride": stride, "channels": channels, "light": light.tolist(), "turn": turn.tolist(), "order": order}),
             capture_output=True, text=True, timeout=60, check=True, cwd=VIEWER)
         got = np.array(json.loads(done.stdout)).reshape(-1, 3)
-        expected = shaded_per_vertex(volumes, positions, transfer.astype(np.float64), channels, light, turn)
+        expected = shaded_per_vertex(volumes, positions, transfer.astype(np.float64), channels, light, turn, order)
         np.testing.assert_allclose(got, expected, atol=1e-4 * np.abs(expected).max())  # float32 results
     inside = [np.all(np.abs(np.linalg.solve(placement[:3, :3], (positions - placement[:3, 3]).T)) <= 1.0, axis=0)
               for placement, *_ in volumes]
@@ -103,17 +105,20 @@ def test_the_file_flags_per_vertex_light_and_colour_0_holds_it(vertex_glb, probe
     volume = extras["probe_volumes"][0]
     node = next(node for node in document["nodes"] if node.get("name") == "Suzanne")
     mesh = document["meshes"][node["mesh"]]
-    assert (mesh["extras"]["prt"]["dynamic"], mesh["extras"]["prt"]["probe_light"]) == (True, "vertex")
+    prt = mesh["extras"]["prt"]
+    assert (prt["dynamic"], prt["probe_light"], prt["light_order"], prt["order"]) == \
+        (True, "vertex", ORDER, volume["received_order"])
     attributes = mesh["primitives"][0]["attributes"]
     accessors = {name: accessor(document, binary, index) for name, index in attributes.items()}
     transfer = np.hstack([accessors[name] for name in mesh["extras"]["prt"]["attributes"]])
     world = node_matrix(node)
     positions = accessors["POSITION"] @ world[:3, :3].T + world[:3, 3]
-    matrices = view_floats(document, binary, volume["bufferView"]).reshape(volume["probes"], 1, 16, 16)
+    matrices = view_floats(document, binary, volume["bufferView"]).reshape(volume["probes"], 1, prt["order"] ** 2,
+                                                                           ORDER ** 2)
     volumes = [(np.reshape(volume["placement"], (4, 4)), volume["resolution"], np.array(volume["valid"]) != 0,
                 matrices.astype(np.float64))]
     turn = world[:3, :3] / np.linalg.norm(world[:3, :3], axis=0)
-    shown = shaded_per_vertex(volumes, positions, transfer, 1, light_from_extras(extras, ORDER), turn)
+    shown = shaded_per_vertex(volumes, positions, transfer, 1, light_from_extras(extras, ORDER), turn, prt["order"])
     colours = accessors["COLOR_0"][:, :3]
     assert np.abs(np.clip(shown, 0.0, 1.0) - colours).max() < 2e-5  # linear, clipped to 0-1, 16-bit
     at_centre = suzannes_colours(probe_glb)

@@ -26,7 +26,7 @@ from prt_addon.blender import probe_volumes
 from prt_addon.blender.relighting import Relighter, bounds_centre
 from prt_addon.blender.render import render
 from prt_addon.commands.view import VIEWER, address, start_server, stop_server
-from prt_addon.core import bake, gltf_pack, gltf_probes, probe_grid, rotation, shading
+from prt_addon.core import bake, gltf_pack, gltf_probes, probe_grid, probe_transfer, rotation, shading
 
 SIZE = (320, 240)
 MAX_RMS = 0.02  # as tests/test_gltf.py: the viewer's picture against Blender's render, RMS over pixels (sRGB, 0-1)
@@ -34,6 +34,7 @@ MAX_RMS = 0.02  # as tests/test_gltf.py: the viewer's picture against Blender's 
 # anti-aliasing differ pixel by pixel (1.8-2.1 % seen); a wrong light would move her mean, which must stay within 0.5 %.
 MAX_RMS_SUZANNE, MAX_MEAN_SUZANNE = 0.03, 0.005
 ORDER = 4
+RECEIVED = probe_transfer.received_order(ORDER)  # the probes' arriving light, and the dynamic transfer's order
 START = (-1.3, 0.0, 0.6)  # Suzanne in the wall's shadow (the sun shines from +X)
 TO_GLTF = np.diag([1.0, 1.0, 1.0, 1.0])
 TO_GLTF[:3, :3] = gltf_pack.Z_UP_TO_Y_UP
@@ -120,16 +121,19 @@ def test_the_file_carries_the_probes_and_flags_the_dynamic_object(probe_file, pr
     bpy.ops.wm.open_mainfile(filepath=str(probe_file))
     empty = bpy.data.objects["PRT Probe Volume"]
     stored, meta = probe_volumes.read(empty), empty[probe_volumes.METADATA_KEY]
-    assert (volume["name"], volume["resolution"], volume["order"], volume["channels"], volume["probes"]) == \
-        ("PRT Probe Volume", [7, 2, 3], ORDER, 1, 42)
+    assert (volume["name"], volume["resolution"], volume["order"], volume["received_order"], volume["channels"],
+            volume["probes"]) == ("PRT Probe Volume", [7, 2, 3], ORDER, RECEIVED, 1, 42)
     assert volume["bake"]["bake_id"] == meta["bake_id"] and volume["bake"]["layout"] == probe_volumes.PROBE_LAYOUT
     assert volume["valid"] == stored.valid.astype(int).tolist() and sum(volume["valid"]) == 36  # the wall holds 6
-    matrices = view_floats(document, binary, volume["bufferView"]).reshape(42, 1, 16, 16)
+    matrices = view_floats(document, binary, volume["bufferView"]).reshape(42, 1, RECEIVED ** 2, ORDER ** 2)
     np.testing.assert_allclose(matrices, gltf_probes.matrices_to_gltf(stored.matrices), atol=1e-6)
     np.testing.assert_allclose(np.reshape(volume["placement"], (4, 4)),
                                TO_GLTF @ np.reshape(meta["placement"], (4, 4)), atol=1e-12)
     flags = {mesh["name"]: mesh["extras"]["prt"].get("dynamic", False) for mesh in document["meshes"]}
     assert flags == {"Grid": False, "Cube": False, "Suzanne": True}
+    orders = {mesh["name"]: (mesh["extras"]["prt"]["order"], mesh["extras"]["prt"].get("light_order"))
+              for mesh in document["meshes"]}
+    assert orders == {"Grid": (ORDER, None), "Cube": (ORDER, None), "Suzanne": (RECEIVED, ORDER)}
     # read_glb found the extras as the manual describes them; a volume of another layout it would refuse
     changed = copy.deepcopy(document)
     changed["scenes"][0]["extras"]["prt"]["probe_volumes"][0]["layout"] = gltf_probes.LAYOUT + 1
@@ -147,7 +151,7 @@ def test_the_file_alone_gives_the_dynamic_objects_colours_as_blenders_display(pr
     mesh = document["meshes"][node["mesh"]]
     attributes = mesh["primitives"][0]["attributes"]
     accessors = {name: accessor(document, binary, index) for name, index in attributes.items()}
-    transfer = np.hstack([accessors[name] for name in mesh["extras"]["prt"]["attributes"]])[:, : ORDER * ORDER]
+    transfer = np.hstack([accessors[name] for name in mesh["extras"]["prt"]["attributes"]])[:, : RECEIVED ** 2]
     light = light_from_extras(extras, ORDER)
     world = node_matrix(node)
     low, high = (np.array(document["accessors"][attributes["POSITION"]][key]) for key in ("min", "max"))
@@ -156,13 +160,13 @@ def test_the_file_alone_gives_the_dynamic_objects_colours_as_blenders_display(pr
     local = np.linalg.solve(placement[:3, :3], centre - placement[:3, 3])
     assert np.all(np.abs(local) <= 1.0)
     indices, weights = probe_grid.trilinear_weights(local, volume["resolution"], np.array(volume["valid"]) != 0)
-    matrices = view_floats(document, binary, volume["bufferView"]).reshape(42, 1, 16, 16).astype(np.float64)
-    arriving = probe_grid.blend(probe_grid.probe_lights(matrices, light), indices, weights)
+    matrices = view_floats(document, binary, volume["bufferView"]).reshape(42, 1, RECEIVED ** 2, ORDER ** 2)
+    arriving = probe_grid.blend(probe_grid.probe_lights(matrices.astype(np.float64), light), indices, weights)
     turn = world[:3, :3] / np.linalg.norm(world[:3, :3], axis=0)
     shown = shading.shade(transfer, rotation.rotate(arriving, turn.T))
     # COLOR_0 is linear, clipped to 0-1 and 16-bit
     assert np.abs(np.clip(shown, 0.0, 1.0) - accessors["COLOR_0"][:, :3]).max() < 2e-5
-    unlit = shading.shade(transfer, rotation.rotate(light, turn.T))
+    unlit = shading.shade(transfer[:, : ORDER ** 2], rotation.rotate(light, turn.T))
     assert shown.mean() < 0.7 * unlit.mean()  # in the wall's shadow: the probes matter
 
 
@@ -200,11 +204,11 @@ def test_the_viewers_probe_light_is_the_add_ons():
     placement = np.eye(4)
     placement[:3, :3] = rotation.quaternion_to_matrix(rng.normal(size=4)) @ np.diag([2.0, 1.0, 1.5])
     placement[:3, 3] = rng.normal(size=3)
-    matrices = rng.normal(size=(count, channels, 9, 9)).astype(np.float32)
+    matrices = rng.normal(size=(count, channels, 25, 9)).astype(np.float32)  # order 3 to order 5
     light, turn = rng.normal(size=(3, 9)), rotation.quaternion_to_matrix(rng.normal(size=4))
     locals_ = np.vstack([rng.uniform(-1, 1, size=(6, 3)), [[0.99, -0.99, 0.0], [1.2, 0.0, 0.0]]])
     points = locals_ @ placement[:3, :3].T + placement[:3, 3]
-    volume = {"name": "V", "order": 3, "channels": channels, "resolution": list(resolution),
+    volume = {"name": "V", "order": 3, "received_order": 5, "channels": channels, "resolution": list(resolution),
               "valid": valid.astype(int).tolist(), "placement": placement.ravel().tolist()}
     request = {"volume": volume, "matrices": matrices.ravel().tolist(), "points": points.tolist(),
                "light": light.tolist(), "turn": turn.tolist()}

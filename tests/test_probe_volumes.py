@@ -3,7 +3,7 @@ its operator and a dynamic sphere, baked; the sphere is shaded from its self-tra
 centre through the probes. Interreflected, the probes also hold the light a coloured floor reflects.
 
 Truth, independent of the bake: the direct-light model in closed form. A probe's transfer is
-T_ij = ∫ y_i V y_j dω with V from exact ray tests against the floor square and the wall's box, integrated by
+T_ij = ∫ y_i V y_j dω (i to the arriving light's order, j to the distant light's) with V from exact ray tests against the floor square and the wall's box, integrated by
 Gauss-Legendre quadrature in z × uniform φ (scipy's SH); a convex sphere's self-transfer is the clamped cosine, so
 under a point sun L it shows at world normal n: Σ_lm (Â_l/π) Y_lm(n) (T L)_lm, whatever its turn. A floor that
 nothing shadows has the clamped cosine lobe for transfer, so with albedo ρ it sends back E = ρ (Â_l/π) Y_lm(+Z)
@@ -26,15 +26,16 @@ from prt_addon.blender.plan import plan_bake
 from prt_addon.blender.request import read_request
 from prt_addon.blender.compat import new_node_material
 from prt_addon.blender.scene_bake import SceneBake
-from prt_addon.core import bake, probe_grid
+from prt_addon.core import bake, probe_grid, probe_transfer
 from prt_addon.core.checks import ERROR
 from prt_addon.core.executors import InProcess
 from prt_addon.core.shading import direction_from_angles, sun_coefficients
 
 ORDER = 4
+RECEIVED = probe_transfer.received_order(ORDER)  # the arriving light's order, and the dynamic transfer's
 SAMPLES = 4096
 SUN = (0.7, 0.0, 3.0)  # θ, φ, strength: a point sun over the wall from +X, so the wall shadows its −X side
-A_HAT = (math.pi, 2 * math.pi / 3, math.pi / 4, 0.0)  # Â_l of the clamped cosine, l < 4
+A_HAT = (math.pi, 2 * math.pi / 3, math.pi / 4, 0.0, -math.pi / 24, 0.0)  # Â_l of the clamped cosine, l < 6
 FLOOR = 10.0  # half the floor's side
 WALL = ((-0.2, -3.0, 0.0), (0.2, 3.0, 3.0))  # the wall's box
 SHADOW, BESIDE_WALL, OPEN = (-1.6, 0.0, 0.7), (-0.8, 0.0, 0.7), (3.2, 0.0, 0.7)
@@ -91,10 +92,10 @@ def sphere_quadrature(nodes=400):
 
 
 def closed_form_transfer(origin, hits=blocked) -> np.ndarray:
-    """T_ij = ∫ y_i V y_j dω, V from the ray tests `hits`."""
+    """T_ij = ∫ y_i V y_j dω (N² × n²), V from the ray tests `hits`."""
     directions, weights = sphere_quadrature()
-    y = reference_sh(ORDER, directions)
-    return np.einsum("k,ki,kj->ij", weights * ~hits(np.asarray(origin, dtype=float), directions), y, y)
+    y = reference_sh(RECEIVED, directions)
+    return np.einsum("k,ki,kj->ij", weights * ~hits(np.asarray(origin, dtype=float), directions), y, y[:, :ORDER ** 2])
 
 
 def sun_light() -> np.ndarray:
@@ -102,10 +103,14 @@ def sun_light() -> np.ndarray:
     return strength * sun_coefficients(ORDER, direction_from_angles(theta, phi), 0.0)
 
 
+def lobe(order, normals=((0.0, 0.0, 1.0),)) -> np.ndarray:
+    """(..., order²) the clamped cosine lobe's SH about each normal, (Â_l/π) Y_lm(n): a convex object's transfer."""
+    return np.repeat(np.array(A_HAT[:order]) / math.pi, 2 * np.arange(order) + 1) * reference_sh(order, normals)
+
+
 def convex_shading(normals, arriving) -> np.ndarray:
-    """What a convex object shows at world normals under the arriving SH light (n²,)."""
-    bands = np.repeat(np.array(A_HAT) / math.pi, 2 * np.arange(ORDER) + 1)
-    return np.maximum(reference_sh(ORDER, normals) @ (bands * arriving), 0.0)
+    """What a convex object shows at world normals under the arriving SH light (N²,), or the distant one (n²,)."""
+    return np.maximum(lobe(RECEIVED, normals)[:, :len(arriving)] @ arriving, 0.0)
 
 
 def colours(mesh) -> np.ndarray:
@@ -141,8 +146,7 @@ def test_a_dynamic_sphere_in_the_walls_shadow_gets_the_closed_form_light_through
     light = sun_light()
     sigma = volume[probe_volumes.METADATA_KEY]["est_max_error"]
     # The shading at any normal moves by at most ‖ΔT‖_F ‖L‖ ‖(Â/π)·y(n)‖ for an error ΔT of the probe's matrix.
-    reach = np.linalg.norm(light) * np.linalg.norm(np.repeat(np.array(A_HAT) / math.pi, 2 * np.arange(ORDER) + 1)
-                                                   * reference_sh(ORDER, np.array([[0.0, 0.0, 1.0]]))[0])
+    reach = np.linalg.norm(light) * np.linalg.norm(lobe(RECEIVED))
     means = {}
     for name, location, turn in (("shadow", SHADOW, (0.4, 1.1, -2.0)), ("open", OPEN, (0.0, 0.0, 0.0))):
         shown = shown_at(sphere, location, turn)
@@ -171,9 +175,8 @@ def test_per_vertex_each_vertex_gets_its_own_blend_of_the_closed_form_probes(wal
     placement = np.linalg.inv(stored.to_volume)
     truth = np.array([closed_form_transfer(origin) for origin in probe_grid.probe_positions(placement, (5, 1, 2))])
     light = sun_light()
-    reach = np.linalg.norm(light) * np.linalg.norm(np.repeat(np.array(A_HAT) / math.pi, 2 * np.arange(ORDER) + 1)
-                                                   * reference_sh(ORDER, np.array([[0.0, 0.0, 1.0]]))[0])
-    apart = 0.0
+    reach = np.linalg.norm(light) * np.linalg.norm(lobe(RECEIVED))
+    apart = worst = 0.0
     for location, turn in ((SHADOW, (0.4, 1.1, -2.0)), (OPEN, (0.0, 0.0, 0.0)), ((-2.4, 0.0, 1.2), (1.0, 0.0, 0.5))):
         shown = shown_at(sphere, location, turn)
         positions = np.empty(3 * len(sphere.data.vertices))
@@ -189,8 +192,8 @@ def test_per_vertex_each_vertex_gets_its_own_blend_of_the_closed_form_probes(wal
         print(f"{location}: per vertex largest difference {error:.4f} (bound {3 * sigma * reach + 2e-3:.4f}); "
               f"from the centre's light instead {np.abs(centre - expected).max():.4f}")
         assert error <= 3 * sigma * reach + 2e-3
-        apart = max(apart, np.abs(centre - expected).max())
-    assert apart > 3 * sigma * reach + 2e-3  # per vertex is not the centre's light
+        apart, worst = max(apart, np.abs(centre - expected).max()), max(worst, error)
+    assert apart > 3 * worst  # per vertex is not the centre's light
     sphere.prt_probe_light = "centre"  # shown again at once, the centre's light
     update()
     indices, weights = probe_grid.trilinear_weights(stored.to_volume[:3, :3] @ location + stored.to_volume[:3, 3],
@@ -236,10 +239,10 @@ def test_keyframed_motion_renders_each_frames_probe_light_with_eevee(wall_scene,
     scene.render.image_settings.file_format = "PNG"
     scene.render.filepath = str(tmp_path / "frame_")
     bpy.ops.render.render(animation=True)
-    lobe = np.repeat(np.array(A_HAT) / math.pi, 2 * np.arange(ORDER) + 1) * reference_sh(ORDER, [[0.0, 0.0, 1.0]])[0]
+    upward = lobe(RECEIVED)[0]
     placement = np.linalg.inv(stored.to_volume)
     light = sun_light()
-    bound = 3 * sigma * np.linalg.norm(light) * np.linalg.norm(lobe) + 2e-3 + 0.01  # + 8-bit sRGB and EEVEE's filter
+    bound = 3 * sigma * np.linalg.norm(light) * np.linalg.norm(upward) + 2e-3 + 0.01  # + 8-bit sRGB and EEVEE's filter
     shown, expected = {}, {}
     for frame, (location, _) in frames.items():
         top = np.array(location) + (0.0, 0.0, 0.3)
@@ -247,7 +250,7 @@ def test_keyframed_motion_renders_each_frames_probe_light_with_eevee(wall_scene,
                                                         (5, 1, 2), stored.valid)
         probes = probe_grid.probe_positions(placement, (5, 1, 2))[indices]
         arriving = sum(weight * closed_form_transfer(origin) @ light for weight, origin in zip(weights, probes))
-        expected[frame] = max(lobe @ arriving, 0.0)
+        expected[frame] = max(upward @ arriving, 0.0)
         pixels = srgb_to_linear(read_png(str(tmp_path / f"frame_{frame:04d}.png"))[7:9, 7:9, :3])
         shown[frame] = pixels.mean()
         print(f"frame {frame}: top of the sphere rendered {shown[frame]:.4f}, closed form {expected[frame]:.4f} "
@@ -276,7 +279,7 @@ def test_beside_the_wall_the_sphere_is_lit_by_its_own_side_only(wall_scene, tmp_
     bpy.ops.wm.open_mainfile(filepath=path)
     reread = probe_volumes.read(bpy.data.objects["PRT Probe Volume"])
     assert np.array_equal(reread.matrices, baked.matrices) and np.array_equal(reread.valid, baked.valid)
-    assert reread.resolution == (5, 1, 2) and reread.order == ORDER
+    assert reread.resolution == (5, 1, 2) and (reread.order, reread.received_order) == (ORDER, RECEIVED)
 
 
 def floor_only(origin, directions):
@@ -303,20 +306,20 @@ def test_interreflected_probes_hold_the_light_a_coloured_floor_reflects(empty_sc
     SceneBake(bpy.context, bake.BakeSettings(order=ORDER, mode="interreflected", samples=SAMPLES)).run(
         log=lambda line: None)
     stored = probe_volumes.read(volume)
-    assert stored.matrices.shape == (2, 3, ORDER * ORDER, ORDER * ORDER) and stored.valid.all()
+    assert stored.matrices.shape == (2, 3, RECEIVED ** 2, ORDER ** 2) and stored.valid.all()
     sigma = volume[probe_volumes.METADATA_KEY]["est_max_error"]
-    lobe = np.repeat(np.array(A_HAT) / math.pi, 2 * np.arange(ORDER) + 1) * reference_sh(ORDER, [[0.0, 0.0, 1.0]])[0]
+    floor = lobe(ORDER)[0]  # the floor's own transfer, to the distant light's order
     directions, weights = sphere_quadrature()
     for probe, height in enumerate((0.75, 1.25)):
         origin = np.array([1.0, -2.0, height])
-        seen = (weights * floor_only(origin, directions)) @ reference_sh(ORDER, directions)  # ∫ y_i [floor]
-        expected = closed_form_transfer(origin, floor_only)[None] + np.einsum("i,c,j->cij", seen, albedo, lobe)
+        seen = (weights * floor_only(origin, directions)) @ reference_sh(RECEIVED, directions)  # ∫ y_i [floor]
+        expected = closed_form_transfer(origin, floor_only)[None] + np.einsum("i,c,j->cij", seen, albedo, floor)
         difference = np.linalg.norm(stored.matrices[probe] - expected)
-        reflected = np.linalg.norm(np.einsum("i,c,j->cij", seen, albedo, lobe))
+        reflected = np.linalg.norm(np.einsum("i,c,j->cij", seen, albedo, floor))
         print(f"probe at z = {height}: ‖T − closed form‖ {difference:.4f}, 3σ {3 * sigma:.4f}, "
               f"reflected part ‖·‖ {reflected:.4f}")
         assert difference <= 3 * sigma + 2e-3
-        assert reflected > 10 * (3 * sigma + 2e-3)  # the reflection is far beyond the noise: it is there
+        assert reflected > 5 * (3 * sigma + 2e-3)  # the reflection is far beyond the noise: it is there
 
 
 def test_the_checks_count_the_probes_rays_and_refuse_probes_memory_cannot_hold(empty_scene):

@@ -123,7 +123,8 @@ function relight() {
   const ambient = lights.ambient();
   for (const mesh of meshes) {
     const {layout} = mesh.userData;
-    if (!totals.has(layout.order)) totals.set(layout.order, lights.total(layout.order));
+    const order = layout.light_order || layout.order;  // a dynamic mesh's light is below its transfer's order
+    if (!totals.has(order)) totals.set(order, lights.total(order));
     const uniforms = mesh.material.uniforms;
     if (!layout.dynamic) setLight(mesh.material, layout, totals.get(layout.order));
     uniforms.uMode.value = state.mode;

@@ -6,6 +6,7 @@
 // frame (probes.js), as the add-on's display shades it.
 import * as THREE from "three";
 import {lightAt, lightInFrame, vertexRadiance} from "./probes.js";
+import {fitted} from "./sh.js";
 import {RADIANCE_ATTRIBUTE, attributeName, litPerVertex} from "./prt_material.js";
 
 const TURN = 15 * Math.PI / 180;
@@ -69,8 +70,8 @@ export class Mover {
     return object.box.getCenter(new THREE.Vector3()).applyMatrix4(object.node.matrixWorld);
   }
 
-  // Sets each dynamic mesh's light: `totals(order)` the distant light [3][n²] in glTF's frame; `setLight` the
-  // material's writer (prt_material.js).
+  // Sets each dynamic mesh's light: `totals(order)` the distant light [3][n²] in glTF's frame, at the order the mesh
+  // is lit by (its extras' light_order, below its transfer's); `setLight` the material's writer (prt_material.js).
   relight(totals, setLight) {
     for (const object of this.objects) {
       const centre = this.centre(object).toArray();
@@ -78,17 +79,17 @@ export class Mover {
       const turn = [0, 1, 2].map((i) => [0, 1, 2].map((j) => rotation[4 * j + i]));
       for (const mesh of object.meshes) {
         const {layout} = mesh.userData;
-        const distant = totals(layout.order);
+        const distant = totals(layout.light_order || layout.order);
         const found = lightAt(this.volumes, centre, distant);
         this.lit.set(object.node, found.volume);
         if (mesh.userData.rows) {
           const {rows, stride} = mesh.userData.rows;
           const attribute = mesh.geometry.getAttribute(RADIANCE_ATTRIBUTE);
           attribute.array.set(vertexRadiance(this.volumes, worldPositions(mesh), rows, stride, layout.channels,
-                                             distant, turn));
+                                             distant, turn, layout.order));
           attribute.needsUpdate = true;
         } else {
-          setLight(mesh.material, layout, lightInFrame(found.light || distant, turn));
+          setLight(mesh.material, layout, fitted(lightInFrame(found.light || distant, turn), layout.order ** 2));
         }
       }
     }

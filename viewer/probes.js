@@ -3,13 +3,15 @@
 // around the object's centre (core/probe_grid.py, ported line for line), Σ w_p T_p L, then turned into the object's
 // frame (blender/relighting.py light_in_frame), or at each of its vertices (vertexRadiance, Blender's Probe Light
 // Per Vertex). Plain arrays, no three.js, so node runs it in the tests.
-import {bandMatrices, rotate, rotateByBands} from "./sh.js";
+import {bandMatrices, fitted, rotate, rotateByBands} from "./sh.js";
 
 export class ProbeVolume {
-  // `volume`: one entry of probe_volumes; `matrices`: its float32 buffer view (P × C × n² × n²).
+  // `volume`: one entry of probe_volumes; `matrices`: its float32 buffer view (P × C × N² × n²), n its order (the
+  // distant light's), N its received_order (the arriving light's).
   constructor(volume, matrices) {
     this.name = volume.name;
     this.order = volume.order;
+    this.receivedOrder = volume.received_order;
     this.channels = volume.channels;
     this.resolution = volume.resolution;
     this.valid = volume.valid;
@@ -38,17 +40,18 @@ export class ProbeVolume {
     return Math.abs(out[0]) <= 1 && Math.abs(out[1]) <= 1 && Math.abs(out[2]) <= 1;
   }
 
-  // Float64Array(P·3·n²): every probe's light T_p L (probe after probe, channel after channel) under the distant
+  // Float64Array(P·3·N²): every probe's light T_p L (probe after probe, channel after channel) under the distant
   // light [3][n²], kept for the last light (probe_volumes.lights): a light change costs one product per probe, a
   // moving object none.
   probeLights(light) {
-    const n2 = this.order * this.order, count = this.valid.length, key = light.map((c) => Array.from(c)).join();
+    const n2 = this.order * this.order, r2 = this.receivedOrder * this.receivedOrder, count = this.valid.length;
+    const key = light.map((c) => Array.from(c)).join();
     if (this.lastLight && this.lastLight.key === key) return this.lastLight.lights;
-    const lights = new Float64Array(count * 3 * n2);
+    const lights = new Float64Array(count * 3 * r2);
     for (let probe = 0; probe < count; probe++) {
       for (let c = 0; c < 3; c++) {
-        const start = (probe * this.channels + (this.channels === 1 ? 0 : c)) * n2 * n2, row = (probe * 3 + c) * n2;
-        for (let i = 0; i < n2; i++) {
+        const start = (probe * this.channels + (this.channels === 1 ? 0 : c)) * r2 * n2, row = (probe * 3 + c) * r2;
+        for (let i = 0; i < r2; i++) {
           let sum = 0;
           for (let j = 0; j < n2; j++) sum += this.matrices[start + i * n2 + j] * light[c][j];
           lights[row + i] = sum;
@@ -62,26 +65,26 @@ export class ProbeVolume {
   // probeLights turned into an object's frame by the band blocks `blocks` (sh.js bandMatrices): a rotation is
   // linear, so the blend of these is the blended light turned (blender/relighting.py dynamic_radiance).
   turnedLights(light, blocks) {
-    const lights = this.probeLights(light), n2 = this.order * this.order;
+    const lights = this.probeLights(light), r2 = this.receivedOrder * this.receivedOrder;
     const out = new Float64Array(lights.length);
-    for (let row = 0; row < lights.length; row += n2) {
-      out.set(rotateByBands(lights.subarray(row, row + n2), blocks), row);
+    for (let row = 0; row < lights.length; row += r2) {
+      out.set(rotateByBands(lights.subarray(row, row + r2), blocks), row);
     }
     return out;
   }
 
-  // [3][n²]: the light arriving where the probes `indices` carry `weights`, each colour channel through its own
+  // [3][N²]: the light arriving where the probes `indices` carry `weights`, each colour channel through its own
   // matrix (a grey volume's one matrix for all three).
   incoming(indices, weights, light) {
-    const n2 = this.order * this.order, block = n2 * n2;
+    const n2 = this.order * this.order, r2 = this.receivedOrder * this.receivedOrder, block = r2 * n2;
     return [0, 1, 2].map((c) => {
-      const out = new Float64Array(n2);
+      const out = new Float64Array(r2);
       const channel = this.channels === 1 ? 0 : c;
       indices.forEach((probe, q) => {
         const w = weights[q];
         if (w === 0) return;
         const start = (probe * this.channels + channel) * block;
-        for (let i = 0; i < n2; i++) {
+        for (let i = 0; i < r2; i++) {
           let sum = 0;
           for (let j = 0; j < n2; j++) sum += this.matrices[start + i * n2 + j] * light[c][j];
           out[i] += w * sum;
@@ -153,16 +156,19 @@ export function lightAt(volumes, point, light) {
 // dynamic_radiance): each vertex, at `positions` (glTF world, 3·V floats), takes the light arriving there from the
 // distant light [3][n²], Σ w_p T_p L through the smallest volume of the light's order whose cube holds it (the
 // distant light outside every one), turned into the object's frame by `turn` (3 × 3 rows, its world rotation), and
-// shades its transfer row with it: `transfer` holds V rows of `stride` floats in the mesh's packing (channel-major;
-// `channels` 1: one transfer for every colour). The probes' lights are formed and turned once per call, so a
-// vertex costs the sum of its 8 probes' lights and one product per colour.
-export function vertexRadiance(volumes, positions, transfer, stride, channels, light, turn) {
-  const n2 = light[0].length, order = Math.round(Math.sqrt(n2));
-  const blocks = bandMatrices(order, [0, 1, 2].map((i) => [0, 1, 2].map((j) => turn[j][i])));
-  const usable = volumes.filter((volume) => volume.order === order);
-  const turned = usable.map((volume) => volume.turnedLights(light, blocks));
+// shades its transfer row with it: `transfer` holds V rows of `stride` floats in the mesh's packing (channel-major,
+// `order`² coefficients a channel; `channels` 1: one transfer for every colour). Each light is fitted to the
+// transfer's order (sh.js fitted). The probes' lights are formed and turned once per call, so a vertex costs the
+// sum of its 8 probes' lights and one product per colour.
+export function vertexRadiance(volumes, positions, transfer, stride, channels, light, turn, order) {
+  const n2 = order * order, lightOrder = Math.round(Math.sqrt(light[0].length));
+  const back = [0, 1, 2].map((i) => [0, 1, 2].map((j) => turn[j][i]));
+  const usable = volumes.filter((volume) => volume.order === lightOrder);
+  const turned = usable.map((volume) => volume.turnedLights(light, bandMatrices(volume.receivedOrder, back)));
+  const strides = usable.map((volume) => volume.receivedOrder * volume.receivedOrder);
+  const blocks = bandMatrices(order, back);
   const distant = new Float64Array(3 * n2);
-  light.forEach((channel, c) => distant.set(rotateByBands(channel, blocks), c * n2));
+  fitted(light, n2).forEach((channel, c) => distant.set(rotateByBands(channel, blocks), c * n2));
   const count = positions.length / 3, radiance = new Float32Array(3 * count), blended = new Float64Array(3 * n2);
   const local = [0, 0, 0], mine = [0, 0, 0], indices = new Array(8), weights = new Array(8);
   for (let v = 0; v < count; v++) {
@@ -178,10 +184,13 @@ export function vertexRadiance(volumes, positions, transfer, stride, channels, l
     if (best >= 0) {
       fillTrilinear(local, usable[best].resolution, usable[best].valid, indices, weights);
       blended.fill(0);
-      const lights = turned[best];
+      const lights = turned[best], r2 = strides[best], shared = Math.min(n2, r2);
       for (let q = 0; q < 8; q++) {
-        const w = weights[q], start = indices[q] * 3 * n2;
-        if (w !== 0) for (let i = 0; i < 3 * n2; i++) blended[i] += w * lights[start + i];
+        const w = weights[q], start = indices[q] * 3 * r2;
+        if (w === 0) continue;
+        for (let c = 0; c < 3; c++) {
+          for (let i = 0; i < shared; i++) blended[c * n2 + i] += w * lights[start + c * r2 + i];
+        }
       }
       arriving = blended;
     }

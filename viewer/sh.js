@@ -64,6 +64,12 @@ export function rotate(coefficients, R) {
 }
 
 // rotate() with the rotation's band blocks (bandMatrices) made once, for many coefficient vectors.
+// [3][count]: the light [3][m] cut to its first `count` coefficients, or followed by zeros up to it (the same
+// light to another order, as core/sh.py fitted).
+export function fitted(light, count) {
+  return light.map((channel) => Float64Array.from({length: count}, (_, k) => (k < channel.length ? channel[k] : 0)));
+}
+
 export function rotateByBands(coefficients, blocks) {
   const rotated = new Float64Array(coefficients.length);
   blocks.forEach((block, l) => {

@@ -10,7 +10,7 @@ import re
 import tomllib
 
 from prt_addon.blender import schema as saved
-from prt_addon.core import gltf_pack, gltf_probes, settings as spec
+from prt_addon.core import gltf_pack, gltf_probes, probe_transfer, settings as spec
 
 from . import ROOT
 
@@ -38,7 +38,12 @@ def _closed(required, properties, description, optional=()):
             "additionalProperties": False}
 
 
-ORDER = _integer(1, spec.MAX_ORDER, "SH order n: bands l < n, n² coefficients per channel")
+MESH_ORDER = _integer(1, probe_transfer.received_order(spec.MAX_ORDER),
+                      "SH order n: bands l < n, n² coefficients per channel (a dynamic object's: its probes' "
+                      "received_order)")
+LIGHT_ORDER = _integer(1, spec.MAX_ORDER, "on a dynamic object's mesh: the order of the distant light it is lit by, "
+                                          "below its transfer's; its coefficients above it are lit only through "
+                                          "the probes")
 CHANNELS = {"enum": [1, 3], "description": "1: grey transfer, one set for every colour; 3: coloured "
                                            "(interreflected) transfer, red's, then green's, then blue's"}
 VEC4S = _integer(1, None, "VEC4s per shading point: channels × n² floats, zero-padded to whole VEC4s")
@@ -53,11 +58,11 @@ WINDOWS = [identifier for identifier, _, _ in saved.WINDOWS if identifier != "au
 
 
 def _mesh(layout, description, required, properties, optional=()):
-    common = {"order": ORDER, "channels": CHANNELS, "vec4s": VEC4S,
+    common = {"order": MESH_ORDER, "channels": CHANNELS, "vec4s": VEC4S,
               "layout": {"const": layout, "description": "how the transfer is stored: " + description},
-              "dynamic": DYNAMIC, "probe_light": PROBE_LIGHT}
+              "dynamic": DYNAMIC, "probe_light": PROBE_LIGHT, "light_order": LIGHT_ORDER}
     return _closed(["order", "channels", "vec4s", "layout", *required], {**common, **properties},
-                   f"A mesh whose transfer is {description}.", ["dynamic", "probe_light", *optional])
+                   f"A mesh whose transfer is {description}.", ["dynamic", "probe_light", "light_order", *optional])
 
 
 MESH_LAYOUTS = {
@@ -120,11 +125,13 @@ BAKE = _closed(["layout", "mode", "samples", "rays", "seed", "est_max_error", "d
     "date": {"type": "string", "description": "when it was baked (ISO 8601, UTC)"},
     "bake_id": {"type": "string", "pattern": "^[0-9a-f]{32}$", "description": "tells two bakes apart"}},
     "A probe volume's `bake`.")
-PROBE_VOLUME = _closed(["name", "layout", "order", "channels", "resolution", "probes", "placement", "valid",
-                        "bufferView", "format", "bake"], {
+PROBE_VOLUME = _closed(["name", "layout", "order", "received_order", "channels", "resolution", "probes", "placement",
+                        "valid", "bufferView", "format", "bake"], {
     "name": {"type": "string", "description": "the Empty's name"},
     "layout": {"const": gltf_probes.LAYOUT, "description": "this layout's version"},
-    "order": ORDER,
+    "order": _integer(1, spec.MAX_ORDER, "the distant light's SH order n: each matrix has n² columns"),
+    "received_order": _integer(probe_transfer.received_order(1), probe_transfer.received_order(spec.MAX_ORDER),
+                               "the arriving light's SH order N, above n: each matrix has N² rows"),
     "channels": {"enum": [1, 3], "description": "1: one matrix for every colour; 3: one per colour"},
     "resolution": {"type": "array", "minItems": 3, "maxItems": 3, "description": "probes along the cube's x, y, z",
                    "items": {"type": "integer", "minimum": 1, "maximum": spec.PROBE_RESOLUTION.maximum}},

@@ -47,13 +47,17 @@ METADATA = {
     "bake_id": "32 hex digits telling two bakes apart",
     "fingerprint": "32-digit hex digests of what the bake depended on: a `--stale-only` rebake compares them",
     storage.DYNAMIC_KEY: "on: the transfer is in the object's own frame, against itself only",
+    storage.LIGHT_ORDER_KEY: "a dynamic object's: the order of the distant light it is lit by; its own `order` is "
+                             "the probes' `received_order`, above it",
     "uv_map": "the lightmap UV map the texels follow", "width": "the maps' width in texels",
     "height": "their height", "texels": "texels covered by the mesh",
     "gutter": "texels dilated around each UV island", "images": "the maps' image names, in order",
     "error_image": "the error map's image name",
 }
 PROBES = {
-    "layout": "this layout's version", "order": "SH order n of the matrices", "channels": "1 or 3 (one per colour)",
+    "layout": "this layout's version", "order": "SH order n of the distant light: the matrices' n² columns",
+    "received_order": "SH order N of the light arriving at the probes: the matrices' N² rows",
+    "channels": "1 or 3 (one per colour)",
     "resolution": "probes along the cube's X, Y, Z", "placement": "the matrix taking the cube [−1, 1]³ to world "
     "space as baked (the Empty's display size included), 16 floats by rows", "mode": "the bake's mode",
     "samples": "rays per probe asked for", "rays": "rays cast per probe", "seed": "the random seed",
@@ -152,8 +156,8 @@ def _probe_volume(found) -> str:
     _same_names(set(meta), set(PROBES), "probe volume metadata keys")
     properties = table(["Custom property", "Value", "What it holds"], [
         (code(probe_volumes.TRANSFER_KEY), "float array",
-         "the transfer matrices, P × channels × n² × n² in C order, probes numbered X slowest, Z fastest: each maps "
-         "the distant light's SH to the SH of the light arriving at the probe"),
+         "the transfer matrices, P × channels × N² × n² in C order, probes numbered X slowest, Z fastest: each maps "
+         "the distant light's SH (order n) to the SH of the light arriving at the probe (order N)"),
         (code(probe_volumes.VALID_KEY), "integer array", "P flags: 0 for a probe inside geometry, left out"),
         (code(probe_volumes.METADATA_KEY), "group", "the keys below")])
     keys = table(["Key", "Value", "Meaning"], [(code(key), _kind(meta[key]), meaning) for key, meaning in PROBES.items()])

@@ -47,10 +47,11 @@ def export(scene, path: str, profile_name: str) -> dict:
     if not baked:
         raise InputError("no visible mesh has a PRT bake to export")
     packs = {ob.name: bake.packed for ob, bake in baked}
-    dynamic = {ob.name: "centre" for ob, bake in baked if bake.meta.get(storage.DYNAMIC_KEY, False)}
+    dynamic = {ob.name: {"probe_light": "centre", "light_order": storage.light_order(bake.meta)}
+               for ob, bake in baked if bake.meta.get(storage.DYNAMIC_KEY, False)}
     stored, volumes, notes = _probe_volumes(scene)
     shining, window, light_source = _lights(scene)
-    orders = {bake.meta["order"] for _, bake in baked}
+    orders = {storage.light_order(bake.meta) for _, bake in baked}
     cache = core_lights.LightCache()
     totals = cache.totals(shining, orders, window)
     top_order = max(orders)
@@ -59,10 +60,10 @@ def export(scene, path: str, profile_name: str) -> dict:
             for ob, bake in baked:
                 mesh = _link_copy(temporary, ob).data
                 _write_packing(mesh, bake.packed, bake.corner_points)
-                light = totals[bake.meta["order"]]
+                light = totals[storage.light_order(bake.meta)]
                 radiance = _vertex_radiance(ob, bake, light, stored) if ob.name in dynamic else None
                 if radiance is not None:
-                    dynamic[ob.name] = "vertex"
+                    dynamic[ob.name]["probe_light"] = "vertex"
                     display.write_radiance(mesh, radiance, bake.corner_points)
                     continue
                 if ob.name in dynamic:
@@ -77,7 +78,7 @@ def export(scene, path: str, profile_name: str) -> dict:
             "lights": gltf_pack.light_extras(shining, top_order)})
     return {"path": os.path.abspath(path), "profile": profile.name, "objects": list(packs),
             "packs": packs, "light_source": light_source, "dynamic": sorted(dynamic),
-            "lit_per_vertex": sorted(name for name, where in dynamic.items() if where == "vertex"),
+            "lit_per_vertex": sorted(name for name, where in dynamic.items() if where["probe_light"] == "vertex"),
             "probe_volumes": [volume.name for volume in volumes],
             "notes": notes + [note for note in (materials.lost_note(ob) for ob, _ in baked) if note is not None]}
 
@@ -217,8 +218,9 @@ def _run_exporter(temporary, path):
 
 def _finish_file(path, scene_name, packs, dynamic, volumes, scene_extras):
     """Adds extras, data textures, probe volumes and the original names to the exporter's GLB; `dynamic`: the
-    dynamic objects' names, each with where it takes the probes' light ("vertex" or "centre"), `volumes` the probe
-    volumes (core.gltf_probes.PackedProbes)."""
+    dynamic objects' names, each with where it takes the probes' light (probe_light: "vertex" or "centre") and the
+    order of the distant light it is lit by (light_order), `volumes` the probe volumes
+    (core.gltf_probes.PackedProbes)."""
     with open(path, "rb") as file:
         document, binary = glb.read(file.read())
     for mesh in document.get("meshes", []):
@@ -227,7 +229,7 @@ def _finish_file(path, scene_name, packs, dynamic, volumes, scene_extras):
         mesh["extras"] = {"prt": packed.extras(views)}
         where = dynamic.get(mesh["name"].removeprefix(COPY_PREFIX))
         if where is not None:
-            mesh["extras"]["prt"].update(dynamic=True, probe_light=where)
+            mesh["extras"]["prt"].update(dynamic=True, **where)
     for item in document.get("nodes", []) + document.get("meshes", []):
         item["name"] = item.get("name", "").removeprefix(COPY_PREFIX)
     scene = document["scenes"][document.get("scene", 0)]

@@ -82,7 +82,7 @@ def validate_image(context, camera: str | None = None, samples: int = 64, passes
     if not receivers:
         raise InputError("no visible mesh has a PRT bake to validate")
     metas = [ob.data[storage.METADATA_KEY] for ob in receivers]
-    orders = {meta["order"] for meta in metas}
+    orders = {storage.light_order(meta) for meta in metas}
     if len(orders) > 1:
         raise InputError(f"the receivers were baked at orders {sorted(orders)}; one light shows them all only at "
                          f"one order: rebake them alike")

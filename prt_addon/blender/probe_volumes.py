@@ -5,9 +5,10 @@ each probe's transfer matrix on its Empty (blender.store); the display lights ea
 around each of its vertices, or around its centre (blender.relighting).
 
 Stored on the Empty, as custom properties saved in the .blend with it:
-- `_prt_probe_transfer`: float32 array, the matrices (P, C, n², n²) in C order, probes numbered as core.probe_grid;
+- `_prt_probe_transfer`: float32 array, the matrices (P, C, N², n²) in C order, probes numbered as core.probe_grid;
 - `_prt_probe_valid`: int array (P,), 0 for a probe inside static geometry (left out of the interpolation);
-- `prt_probes` (a group): layout (PROBE_LAYOUT), order, channels, resolution, placement (where the probes were
+- `prt_probes` (a group): layout (PROBE_LAYOUT), order (n, the distant light's), received_order (N, the arriving
+  light's: core.probe_transfer.received_order), channels, resolution, placement (where the probes were
   baked: the matrix taking core.probe_grid's cube [−1, 1]³ to world space, the display size included, 16 floats by
   rows; moving the Empty afterwards does not move them, but makes them stale), mode, samples, rays, seed,
   inside_probes, est_max_error (the largest probe's standard error, Frobenius norm), date, bake_id, fingerprint
@@ -19,6 +20,7 @@ object, and read back through the buffer protocol at once (a million floats in m
 
 from dataclasses import dataclass, field
 from datetime import datetime, timezone
+import math
 import uuid
 
 import bpy
@@ -33,7 +35,7 @@ from .texel_bake import OBJECT_PREFIX
 TRANSFER_KEY = "_prt_probe_transfer"
 VALID_KEY = "_prt_probe_valid"
 METADATA_KEY = "prt_probes"
-PROBE_LAYOUT = 1  # bump when the stored layout or its conventions change
+PROBE_LAYOUT = 2  # bump when the stored layout or its conventions change
 
 
 @dataclass
@@ -52,13 +54,15 @@ class VolumeInput:
 
 @dataclass
 class StoredProbes:
-    """A probe volume's bake as stored: its matrices (P, C, n², n²), which probes are valid (P,), the inverse of
-    the placement they were baked at (4, 4), its probes per axis and SH order."""
+    """A probe volume's bake as stored: its matrices (P, C, N², n²), which probes are valid (P,), the inverse of
+    the placement they were baked at (4, 4), its probes per axis, and the SH orders of the distant light (n) and of
+    the light arriving at its probes (N)."""
     matrices: np.ndarray
     valid: np.ndarray
     to_volume: np.ndarray
     resolution: tuple
     order: int
+    received_order: int
     bake_id: str = ""
     last_light: tuple | None = None  # (light bytes, its probes' lights): see lights()
 
@@ -107,7 +111,8 @@ def write(volumes: list[VolumeInput], probes, settings) -> list[str]:
         ob[VALID_KEY] = (~probes.inside[rows]).astype(np.int32)
         inside = int(probes.inside[rows].sum())
         ob[METADATA_KEY] = {
-            "layout": PROBE_LAYOUT, "order": settings.order, "channels": matrices.shape[1],
+            "layout": PROBE_LAYOUT, "order": settings.order, "received_order": math.isqrt(matrices.shape[2]),
+            "channels": matrices.shape[1],
             "resolution": list(volume.resolution), "placement": volume.matrix.ravel().tolist(),
             "mode": settings.mode, "samples": settings.samples, "rays": probes.rays, "seed": settings.seed,
             "inside_probes": inside, "est_max_error": float(probes.std_error[rows].max(initial=0.0)),
@@ -133,19 +138,19 @@ def read(ob) -> StoredProbes:
     if meta.get("layout") != PROBE_LAYOUT:
         raise StaleBake(f"probe volume {ob.name!r} was baked with layout version {meta.get('layout')}; rebake it")
     resolution, order, channels = tuple(meta["resolution"]), meta["order"], meta["channels"]
-    size = order * order
+    shape = (int(np.prod(resolution)), channels, meta["received_order"] ** 2, order * order)
     matrices = np.frombuffer(ob[TRANSFER_KEY], dtype=np.float32)
-    count = int(np.prod(resolution))
-    if matrices.size != count * channels * size * size:
+    count = shape[0]
+    if matrices.size != math.prod(shape):
         raise StaleBake(f"probe volume {ob.name!r} holds {matrices.size} values, not its {count} probes'; rebake it")
     placement = np.array(meta["placement"], dtype=np.float64).reshape(4, 4)
-    return StoredProbes(matrices.reshape(count, channels, size, size).astype(np.float64),
-                        np.frombuffer(ob[VALID_KEY], dtype=np.int32) != 0, np.linalg.inv(placement),
-                        resolution, order, meta.get("bake_id", ""))
+    # A copy: the buffer is the property's own memory, freed when a file is loaded or the property replaced.
+    return StoredProbes(matrices.reshape(shape).copy(), np.frombuffer(ob[VALID_KEY], dtype=np.int32) != 0,
+                        np.linalg.inv(placement), resolution, order, meta["received_order"], meta.get("bake_id", ""))
 
 
 def lights(probes: StoredProbes, light) -> np.ndarray:
-    """(P, 3, n²) each probe's incoming light under the distant light (3, n²) (core.probe_grid.probe_lights), kept
+    """(P, 3, N²) each probe's incoming light under the distant light (3, n²) (core.probe_grid.probe_lights), kept
     with the probes for the last light: a light change costs one product per probe, a moving object none."""
     key = light.tobytes()
     if probes.last_light is None or probes.last_light[0] != key:
@@ -176,7 +181,7 @@ def containing(stored: list[StoredProbes], points, matrix=None) -> tuple[np.ndar
 
 
 def light_at(stored: list[StoredProbes], point, light) -> np.ndarray | None:
-    """(3, n²) the SH light arriving at `point` (3,) in world space from the distant light (3, n²) through the
+    """(3, N²) the SH light arriving at `point` (3,) in world space from the distant light (3, n²) through the
     smallest of `stored` of the light's order that holds it (core.probe_grid), or None where none does."""
     stored = [probes for probes in stored if probes.order ** 2 == light.shape[-1]]
     which, local = containing(stored, point)

@@ -8,13 +8,12 @@ call it; a command may use its own. Its own writes change nothing it watches, an
 """
 
 from contextlib import contextmanager
-import math
 
 import bpy
 import numpy as np
 
 from ..core import lights as core_lights
-from ..core import probe_grid, rotation, shading
+from ..core import probe_grid, rotation, sh, shading
 from ..core import settings as spec
 from ..core.arrays import one_thread_product
 from ..core.errors import StaleBake
@@ -164,7 +163,7 @@ class Relighter:
 
     def _shade(self, scene, receivers, settings, depsgraph):
         """Sums the lights once per SH order, then writes the colours of each mesh whose light or bake changed."""
-        orders = {math.isqrt(baked.transfer.shape[-1]) for _, baked in receivers}
+        orders = {light_order_of(ob.data) for ob, _ in receivers}
         for entry in settings.prt_lights:
             if entry.use and entry.kind == "ENVIRONMENT" and environment_image(entry, settings) is None:
                 self._report_once(f"PRT: SH light {entry.name!r} has no readable image (missing file?); "
@@ -184,7 +183,7 @@ class Relighter:
         dynamic_radiance where it is lit per vertex, else under its displayed_light."""
         probes = self.probes(scene) if any(is_dynamic(ob.data) for ob, _ in receivers) else []
         for ob, baked in receivers:
-            light = totals[math.isqrt(baked.transfer.shape[-1])]
+            light = totals[light_order_of(ob.data)]
             state = (_bake_key(ob.data), light.tobytes())
             radiance = None
             if is_dynamic(ob.data):
@@ -228,8 +227,13 @@ def is_dynamic(mesh) -> bool:
     return bool(meta is not None and meta.get(storage.DYNAMIC_KEY, False))
 
 
+def light_order_of(mesh) -> int:
+    """The order of the distant light the mesh's bake is shaded under (blender.storage.light_order)."""
+    return storage.light_order(mesh[storage.METADATA_KEY])
+
+
 def displayed_light(ob, light, probes=(), depsgraph=None) -> np.ndarray:
-    """The SH light (3, n²) the display shades the object's transfer with: the distant light, or a dynamic object's
+    """The SH light the display shades the object's transfer with: the distant light, or a dynamic object's
     dynamic_light as the depsgraph places it (else as it is now), of `probes` (Relighter.probes). Validation shades
     with it too."""
     if not is_dynamic(ob.data):
@@ -238,11 +242,13 @@ def displayed_light(ob, light, probes=(), depsgraph=None) -> np.ndarray:
 
 
 def dynamic_light(probes: list, ob, light) -> np.ndarray:
-    """(3, n²) the light a dynamic object placed as `ob` is shaded with at its centre, in its own frame: what arrives
-    at the centre of its bounding box through the probe volumes (blender.probe_volumes.StoredProbes) that hold it,
-    else the distant `light`. Lit per vertex, it is shaded from its dynamic_radiance instead."""
+    """(3, N²) the light a dynamic object placed as `ob` is shaded with at its centre, in its own frame, to its
+    transfer's order N: what arrives at the centre of its bounding box from the distant `light` (3, n²) through the
+    probe volumes (blender.probe_volumes.StoredProbes) that hold it, else the distant light itself. Lit per vertex,
+    it is shaded from its dynamic_radiance instead."""
     arriving = probe_volumes.light_at(probes, bounds_centre(ob), light) if probes else None
-    return light_in_frame(light if arriving is None else arriving, ob.matrix_world)
+    size = ob.data[storage.METADATA_KEY]["order"] ** 2
+    return light_in_frame(sh.fitted(light if arriving is None else arriving, size), ob.matrix_world)
 
 
 def probe_light_of(ob) -> str:
@@ -252,7 +258,7 @@ def probe_light_of(ob) -> str:
 
 def dynamic_radiance(ob, placed, baked, points, light, probes) -> np.ndarray | None:
     """(P, 3) the radiance of a dynamic object lit per vertex (core.settings.PROBE_LIGHT), placed as `placed` is,
-    under the distant light (3, n²) in world space, from the baked probe volumes `probes`
+    under the distant light (3, n²) in world space (n its light_order_of), from the baked probe volumes `probes`
     (blender.probe_volumes.StoredProbes); `points` (P, 3): its shading points in its own frame (layouts). None where
     it is lit at its centre (dynamic_light): by its setting, as a texel bake (no points), or without probes of the
     light's order.
@@ -260,7 +266,7 @@ def dynamic_radiance(ob, placed, baked, points, light, probes) -> np.ndarray | N
     Each point is shaded from the light arriving at it, Σ w_p T_p L, turned into the object's frame; the probes'
     lights T_p L come once per light change (probe_volumes.lights) and are turned before they are blended (a rotation
     is linear), so a point costs its share of one product per cell (core.probe_grid.shade_points). A point outside
-    every volume gets the distant light."""
+    every volume gets the distant light. Lights are fitted to the transfer's order (core.sh.fitted)."""
     probes = [found for found in probes if found.order ** 2 == light.shape[-1]]
     if points is None or probe_light_of(ob) != "vertex" or not probes:
         return None
@@ -272,13 +278,15 @@ def dynamic_radiance(ob, placed, baked, points, light, probes) -> np.ndarray | N
         every = bool(rows.all())  # the usual case: the whole object in one volume, no copies
         transfer = baked.transfer if every else baked.transfer[rows]
         if index < 0:
-            found = shading.shade(transfer, rotation.rotate(light, turn))
+            found = shading.shade(transfer, rotation.rotate(sh.fitted(light, transfer.shape[-1]), turn))
         else:
             indices, weights = probe_grid.trilinear_weights(local if every else local[rows], probes[index].resolution,
                                                             probes[index].valid)
             arriving = probe_volumes.lights(probes[index], light)  # (P, 3, n²)
             in_frame = one_thread_product(arriving.reshape(-1, arriving.shape[-1]),
-                                          rotation.sh_matrix(probes[index].order, turn).T).reshape(arriving.shape)
+                                          rotation.sh_matrix(probes[index].received_order, turn).T
+                                          ).reshape(arriving.shape)
+            in_frame = sh.fitted(in_frame, transfer.shape[-1])
             found = probe_grid.shade_points(transfer, in_frame, indices, weights)
         radiance[slice(None) if every else rows] = found
     return radiance

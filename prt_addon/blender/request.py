@@ -7,7 +7,7 @@ from dataclasses import dataclass, field, replace
 
 import bpy
 
-from ..core import bake, engines
+from ..core import bake, engines, probe_transfer
 from ..core.errors import InputError
 from ..core.progress import old_objects_frozen
 from . import fingerprint, geometry, materials, probe_volumes, texel_bake
@@ -40,6 +40,7 @@ class BakeRequest:
     farm: bool = False                             # farm shards bake it (every receiver per vertex)
     ray_engine: str = ""                           # the engine its settings name, with its version, as reported
     dynamic: bool = False                          # its one receiver is dynamic: baked in its own frame, alone
+    light_order: int = 0                           # a dynamic receiver's: the light's (its own, received_order)
     parts: list = field(default_factory=list)      # BakeRequest of each further dynamic receiver, baked after it
     probe_volumes: list = field(default_factory=list)  # blender.probe_volumes.VolumeInput: baked with the scene
 
@@ -144,8 +145,12 @@ def _gather_probe_volumes(request: BakeRequest, context, depsgraph, names=None):
 
 
 def _alone(request: BakeRequest, receiver: ReceiverInput) -> BakeRequest:
-    """A dynamic receiver's own bake: its surface (in its own frame) is its only occluder and bouncer."""
-    alone = BakeRequest(request.settings, [receiver], ray_engine=request.ray_engine, dynamic=True,
+    """A dynamic receiver's own bake: its surface (in its own frame) is its only occluder and bouncer. Its transfer
+    goes to the order of the light the probes carry to it (core.probe_transfer.received_order), lit by the scene's
+    distant light of the bake's order."""
+    order = request.settings.order
+    alone = BakeRequest(replace(request.settings, order=probe_transfer.received_order(order)), [receiver],
+                        ray_engine=request.ray_engine, dynamic=True, light_order=order,
                         fingerprints={receiver.name: request.fingerprints[receiver.name]})
     if request.settings.mode != "unshadowed":
         alone.occluders, _ = occluders_from_depsgraph(None, [receiver.surface])

@@ -40,6 +40,7 @@ VALIDATION_ERROR_ATTRIBUTE = "_prt_validation_error"
 POINT_ATTRIBUTE = "_prt_point"
 METADATA_KEY = "prt"
 DYNAMIC_KEY = "dynamic"  # in a dynamic object's metadata: its transfer is in its own frame (blender.relighting)
+LIGHT_ORDER_KEY = "light_order"  # and the order of the light it is lit by, below its transfer's (light_order)
 MAP_OF_KEY = "_prt_texel_map_of"  # on each image stored for a bake (texel maps, their shaded image): its mesh
 READABLE_CONVENTIONS = (2, bake.CONVENTION_VERSION)  # 2: POINT domain only, no `domain` key
 
@@ -110,6 +111,13 @@ def write_metadata(mesh, result, settings: bake.BakeSettings, domain: str, split
         **fields,
     }
     mesh.update()
+
+
+def light_order(meta: dict) -> int:
+    """The SH order of the distant light a bake is shaded under: its own order, but for a dynamic object's, which
+    bakes to the order of the light its probes carry to it (core.probe_transfer.received_order) and is lit by the
+    distant light of the scene's order, its higher coefficients left unlit where no probe reaches it."""
+    return meta.get(LIGHT_ORDER_KEY) or meta["order"]
 
 
 def baked_objects(objects) -> list:

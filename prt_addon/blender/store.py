@@ -68,6 +68,7 @@ def _store_one(plan: BakePlan, results: BakeResults) -> BakeReport:
             fields["ray_engine"] = summary.ray_engine
         if plan.request.dynamic:
             fields[storage.DYNAMIC_KEY] = True
+            fields[storage.LIGHT_ORDER_KEY] = plan.request.light_order
         layout.write(bpy.data.objects[(name, None)].data, result, fields, settings)
     if results.probes is not None:
         notes += probe_volumes.write(plan.request.probe_volumes, results.probes, settings)

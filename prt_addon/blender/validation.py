@@ -26,7 +26,7 @@ import time
 
 import numpy as np
 
-from ..core import lights, lobes, shading
+from ..core import lights, lobes, sh, shading
 from ..core.errors import InputError
 from ..core.progress import WrappingJob
 from ..core.statistics import clamped_fraction, compare, worst_object
@@ -101,7 +101,7 @@ class Validation(WrappingJob):
         self.problems: list[str] = []  # one sentence per object that is not validated
         self.notes: list[str] = []     # validated, but the user should know
         self.receivers = self._receivers(context, object_names)  # (object, bake metadata)
-        orders = sorted({meta["order"] for _, meta in self.receivers})
+        orders = sorted({storage.light_order(meta) for _, meta in self.receivers})
         self.lights, self.scene_light = scene_light(context, orders)
         if not self.scene_light:
             self.notes.append(f"no SH lights in the scene: validating under the default light, {lights.DEFAULT_LIGHT}")
@@ -123,7 +123,7 @@ class Validation(WrappingJob):
         groups = {}
         for ob, meta in self.receivers:
             alone = ob.name if self._alone(ob, meta) else None
-            key = (meta["order"], meta.get("bounces") if meta["mode"] == INTERREFLECTED_MODE else None, alone)
+            key = (storage.light_order(meta), meta.get("bounces") if meta["mode"] == INTERREFLECTED_MODE else None, alone)
             groups.setdefault(key, LightGroup([], environments[key[0]], key[1], alone=alone is not None)
                               ).objects.append(ob)
         per_corner = {ob.name for ob, meta in self.receivers if meta.get("domain") == "CORNER"}
@@ -159,7 +159,8 @@ class Validation(WrappingJob):
 
     def _alone(self, ob, meta) -> bool:
         """A dynamic object outside every probe volume: only the distant light reaches it."""
-        return is_dynamic(ob.data) and light_at(self.probes, bounds_centre(ob), self.lights[meta["order"]]) is None
+        light = self.lights[storage.light_order(meta)]
+        return is_dynamic(ob.data) and light_at(self.probes, bounds_centre(ob), light) is None
 
     def _real_light_reference(self, samples, passes, per_corner):
         scene = self.context.scene
@@ -217,7 +218,7 @@ class Validation(WrappingJob):
         colours = []
         probes = Relighter().probes(self.context.scene)  # as they are now: a volume may have been baked again since
         for ob, meta in self.receivers:
-            light, radiance = self.lights[meta["order"]], None
+            light, radiance = self.lights[storage.light_order(meta)], None
             if is_dynamic(ob.data):  # lit per vertex through the probes, as the display shades it where it stands
                 baked = layouts.stored(ob.data).read(ob.data)
                 radiance = dynamic_radiance(ob, ob, baked, baked.layout.points(ob.data, baked), light, probes)
@@ -226,16 +227,18 @@ class Validation(WrappingJob):
         return colours
 
     def colours(self, ob, light, radiance=None) -> np.ndarray:
-        """The receiver's PRT colours under `light` (3, n²) in its transfer's frame, or from `radiance` (P, 3) formed
-        per shading point (blender.relighting.dynamic_radiance), per vertex, or per face corner where its bake is
-        per corner, as Cycles bakes it."""
+        """The receiver's PRT colours under `light` (3, n²) in its transfer's frame (fitted to its transfer's order,
+        core.sh.fitted), or from `radiance` (P, 3) formed per shading point (blender.relighting.dynamic_radiance),
+        per vertex, or per face corner where its bake is per corner, as Cycles bakes it."""
         transfer, _ = storage.read_transfer(ob.data)
         corner_points = storage.corner_points_of(ob.data)
         albedo = self.albedos[ob]
         if corner_points is not None:
             transfer, albedo = transfer[corner_points], albedo[mesh_arrays.mesh_corner_vertices(ob.data)]
             radiance = None if radiance is None else radiance[corner_points]
-        return prt_colours(transfer, light, albedo) if radiance is None else albedo * np.maximum(radiance, 0.0)
+        if radiance is None:
+            return prt_colours(transfer, sh.fitted(light, transfer.shape[-1]), albedo)
+        return albedo * np.maximum(radiance, 0.0)
 
     def store_errors(self, comparisons):
         """Each receiver's per-vertex (per-corner) error against Cycles on its mesh, for the viewport's Difference

@@ -29,7 +29,8 @@ CONVENTION = {
     "dynamic": "a mesh whose extras.prt has dynamic true holds its transfer in its node's own frame (glTF axes), "
                "lit by the light arriving at its bounding box's centre (probe_light centre) or at each vertex "
                "(probe_light vertex) through the probe volumes, else the distant light, turned into that frame: "
-               "the coefficients of L(R w), R the node's world rotation",
+               "the coefficients of L(R w), R the node's world rotation; its transfer's order is the probes' "
+               "received_order, above the distant light's (light_order), whose higher coefficients are zero",
 }
 
 

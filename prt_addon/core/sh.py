@@ -25,6 +25,16 @@ def coefficient_bands(order):
     return np.repeat(bands, 2 * bands + 1)
 
 
+def fitted(coefficients, count):
+    """(..., count) the SH coefficients (..., m) cut to their first `count`, or followed by zeros up to it: the same
+    function band-limited to order √count, where it holds nothing above its own order."""
+    coefficients = np.asarray(coefficients)
+    if coefficients.shape[-1] >= count:
+        return coefficients[..., :count]
+    padding = np.zeros(coefficients.shape[:-1] + (count - coefficients.shape[-1],), dtype=coefficients.dtype)
+    return np.concatenate([coefficients, padding], axis=-1)
+
+
 def evaluate(order, directions):
     """Y_k(d) for all k < order²: directions (..., 3) unit vectors -> (..., order²) float64.
 
