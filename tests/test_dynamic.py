@@ -211,6 +211,9 @@ def test_the_stored_bake_panel_and_the_summary_say_which_bakes_are_dynamic(spher
     for ob, dynamic in ((sphere, True), (floor, False)):
         bpy.context.view_layer.objects.active = ob
         assert (said in labels_drawn(bpy.types.PRT_PT_bake_info, [])) is dynamic
+    bpy.context.view_layer.objects.active = sphere  # its transfer goes to the order its probes carry light to
+    assert f"Lit by the order-{ORDER} light, to order {ORDER + 2} through probes" in \
+        labels_drawn(bpy.types.PRT_PT_bake_info, [])
 
 
 def test_the_checks_count_each_dynamic_objects_rays_against_itself_only(empty_scene):

@@ -9,7 +9,7 @@ import tempfile
 import bpy
 import numpy as np
 
-from ..core import checks
+from ..core import checks, probe_transfer
 from ..core.checks import ERROR, INFO, WARNING, Check
 from . import geometry
 from .execute import first_job
@@ -91,7 +91,7 @@ def bake_size(plan, job, spawned: bool) -> checks.BakeSize:
         rays=(job.total_vertices + probes) * settings.samples if casts else 0,
         hits_per_ray=checks.HITS_PER_RAY if casts and settings.mode == "interreflected" else 0.0,
         processes=job.processes(), spawned=spawned, ray_engine=occluders.engine if occluders else "bvhtree",
-        probe_values=probes * channels * settings.order ** 4)
+        probe_values=probes * channels * probe_transfer.received_order(settings.order) ** 2 * settings.order ** 2)
 
 
 def object_checks(ob, receiver: bool, casts_rays: bool) -> list[Check]:

@@ -91,7 +91,7 @@ class BakeSize:
     processes: int            # processes that cast rays
     spawned: bool             # spawned workers load their own copy of the job
     ray_engine: str = "bvhtree"  # the engine that casts them (core.engines)
-    probe_values: int = 0     # the probe volumes' matrices: probes × channels × n⁴ (core.probe_transfer)
+    probe_values: int = 0     # the probe volumes' matrices: probes × channels × N² × n² (core.probe_transfer)
 
     @property
     def coefficients(self) -> int:

@@ -123,6 +123,8 @@ class PRT_PT_bake_info(ActiveMeshPanel, bpy.types.Panel):
         column.label(text=f"Order {meta['order']}, {meta['mode']}, {meta['samples']} samples")
         if meta.get(storage.DYNAMIC_KEY):
             column.label(text="Dynamic: in its own frame, against itself only")
+            column.label(text=f"Lit by the order-{storage.light_order(meta)} light, to order {meta['order']} "
+                              f"through probes")
         column.label(text=f"{meta['rays']:,} rays in {meta.get('time_s', 0.0):.1f} s")
         if "ray_engine" in meta:
             column.label(text=f"Cast with {meta['ray_engine']}")
@@ -174,7 +176,8 @@ class PRT_PT_probe_volume(SidebarPanel, bpy.types.Panel):
             layout.label(text="Its probes light from where they were baked")
         draw_status(layout, context, ob)
         column = layout.column(align=True)
-        column.label(text=f"Order {meta['order']}, {meta['mode']}, {meta['rays']} rays per probe")
+        column.label(text=f"Order {meta['order']} light, arriving to order {meta['received_order']}")
+        column.label(text=f"{meta['mode'].capitalize()}, {meta['rays']} rays per probe")
         column.label(text=f"{meta['inside_probes']} probes inside geometry, left out")
         column.label(text=f"Est. error max {meta['est_max_error']:.4f}")
         column.label(text=f"Baked {meta['date']}")
