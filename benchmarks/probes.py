@@ -1,12 +1,14 @@
 """PRT probe volumes: a dynamic object moved through the demo room against Cycles, and the live cost of relighting it.
 
-    .venv/bin/python benchmarks/probes.py [--quick] [--only accuracy|live] [--samples 64] [--passes 4] [--steps 30]
-                                          [--json [DIR]]
+    .venv/bin/python benchmarks/probes.py [--quick] [--only accuracy|live] [--mode shadowed|interreflected]
+                                          [--samples 64] [--passes 4] [--steps 30] [--json [DIR]]
 
 Accuracy: the demo room (blender.sample_scenes.build_demo_scene, with `prt demo`'s sun and sky as SH lights) with a
 probe volume over it and a dynamic Suzanne (scaled to 0.25, lit per vertex) moved and turned to PLACEMENTS: in the
 open, in the torus's shadow, across its edge, beside the back wall, in the corner. At each, Cycles renders the whole
-scene under the same band-limited light (blender.validation, as `prt validate` does: shadowed bakes, so direct light)
+scene under the same band-limited light (blender.validation, as `prt validate` does: shadowed bakes, so direct light;
+with --mode interreflected, bakes with bounces against Cycles' indirect diffuse light too, the probes then holding
+the light the room's surfaces reflect)
 and PRT's colours (self-transfer × the probes' light at each vertex) are compared vertex by vertex, Cycles' noise
 taken out. Beside them, the same Suzanne baked statically at the first placement and then moved (its bake stale),
 compared with the same Cycles passes. The probe spacing is swept over RESOLUTIONS (probes over the room's
@@ -111,15 +113,15 @@ def place(ob, placement):
     bpy.context.view_layer.update()
 
 
-def bake_probes(volume, resolution, samples, order):
+def bake_probes(volume, resolution, settings):
     """Bakes the probes (with the floor, the cheapest static receiver); seconds of the probes' phase."""
     volume.prt_probe_resolution = resolution
-    job = SceneBake(bpy.context, bake.BakeSettings(order=order, mode="shadowed", samples=samples), ["Floor"])
+    job = SceneBake(bpy.context, settings, ["Floor"])
     job.run(log=log)
     return job.summary.phases_s["probe_volumes_s"]
 
 
-def stale_copy(suzanne, volume, samples, order):
+def stale_copy(suzanne, volume, settings):
     """Suzanne copied, static, baked where she stands with the scene (the probes hidden, so not rebaked with her),
     then hidden: her stored transfer is the stale bake that moving a static object leaves."""
     copy = suzanne.copy()
@@ -128,7 +130,7 @@ def stale_copy(suzanne, volume, samples, order):
     copy.prt_dynamic = False
     bpy.context.collection.objects.link(copy)
     volume.hide_set(True)
-    SceneBake(bpy.context, bake.BakeSettings(order=order, mode="shadowed", samples=samples), [copy.name]).run(log=log)
+    SceneBake(bpy.context, settings, [copy.name]).run(log=log)
     volume.hide_set(False)
     copy.hide_set(True)
     copy.hide_render = True
@@ -139,10 +141,10 @@ def accuracy(args):
     resolutions = QUICK_RESOLUTIONS if args.quick else RESOLUTIONS
     samples = 64 if args.quick else SAMPLES
     suzanne, volume, placements = demo_room(resolutions[0])
-    settings = bake.BakeSettings(order=args.order, mode="shadowed", samples=samples)
+    settings = bake.BakeSettings(order=args.order, mode=args.mode, samples=samples)
     SceneBake(bpy.context, settings, [suzanne.name]).run(log=log)  # her self-transfer, in her frame, once
-    copy = stale_copy(suzanne, volume, samples, args.order)
-    bake_s = {resolutions[0]: bake_probes(volume, resolutions[0], samples, args.order)}  # Cycles sees a lit volume
+    copy = stale_copy(suzanne, volume, settings)
+    bake_s = {resolutions[0]: bake_probes(volume, resolutions[0], settings)}  # Cycles sees a lit volume
     checks, stale = [], []
     start = time.perf_counter()
     for placement in placements:
@@ -157,15 +159,15 @@ def accuracy(args):
     rows = {}
     for resolution in resolutions:
         if resolution not in bake_s:
-            bake_s[resolution] = bake_probes(volume, resolution, samples, args.order)
+            bake_s[resolution] = bake_probes(volume, resolution, settings)
         errors = []
         for placement, check in zip(placements, checks):
             place(suzanne, placement)
             errors.append(check.comparisons()[0])
         rows[resolution] = (bake_s[resolution], errors)
     vertices = len(suzanne.data.vertices)
-    print(f"Suzanne ({vertices:,} vertices, dynamic, lit per vertex) in the demo room, order {args.order}, shadowed; "
-          f"Cycles {args.passes} × {args.samples} samples per placement ({cycles_s:.0f} s for all); "
+    print(f"Suzanne ({vertices:,} vertices, dynamic, lit per vertex) in the demo room, order {args.order}, "
+          f"{args.mode}; Cycles {args.passes} × {args.samples} samples per placement ({cycles_s:.0f} s for all); "
           f"% RMS against Cycles, its noise taken out")
     names = [name for name, _, _ in placements]
     print(f"{'probes':>14} {'spacing':>8} {'bake':>7} " + " ".join(f"{name:>13}" for name in names) + f" {'worst':>7}")
@@ -179,7 +181,8 @@ def accuracy(args):
     finest = max(c.error for c in rows[resolutions[-1]][1])
     print(f"worst placement at the finest spacing: {100 * finest:.2f} % RMS   goal <= {100 * GOAL_RMS:.0f} %   "
           f"{result_files.verdict(finest, '<=', GOAL_RMS)}")
-    return {"vertices": vertices, "placements": names, "finest_worst": finest, "stale": [c.error for c in stale],
+    return {"vertices": vertices, "mode": args.mode, "placements": names, "finest_worst": finest,
+            "stale": [c.error for c in stale],
             "by_resolution": {"x".join(map(str, r)): {"bake_s": b, "errors": [c.error for c in e]}
                               for r, (b, e) in rows.items()}}
 
@@ -290,6 +293,8 @@ def main(argv=None):
     result_files.add_argument(parser)
     parser.add_argument("--only", choices=("accuracy", "live"), help="run one part alone")
     parser.add_argument("--order", type=int, default=ORDER, help=f"SH order of every bake (default {ORDER})")
+    parser.add_argument("--mode", choices=("shadowed", "interreflected"), default="shadowed",
+                        help="the accuracy part's bakes: direct light (default), or with bounces")
     parser.add_argument("--quick", action="store_true", help="a smoke run on coarse probes and small objects")
     args = parser.parse_args(argv)
     result_files.check_folder(parser, args)
@@ -311,7 +316,8 @@ def goals(results: dict) -> list:
     """The goals of the parts this run measured, as benchmarks/results.py records them."""
     found = []
     if "accuracy" in results:
-        found.append(result_files.goal("worst placement at the finest probe spacing, RMS against Cycles",
+        bounces = ", interreflected" if results["accuracy"]["mode"] == "interreflected" else ""
+        found.append(result_files.goal(f"worst placement at the finest probe spacing, RMS against Cycles{bounces}",
                                        100 * results["accuracy"]["finest_worst"], "<=", 100 * GOAL_RMS, "%"))
     if "live" in results:
         live = results["live"]

@@ -2,12 +2,12 @@
 its operator and a dynamic sphere, baked; the sphere is shaded from its self-transfer and the light arriving at its
 centre through the probes. Interreflected, the probes also hold the light a coloured floor reflects.
 
-Truth, independent of the bake: the direct-light model in closed form. A probe's transfer is
-T_ij = ∫ y_i V y_j dω (i to the arriving light's order, j to the distant light's) with V from exact ray tests against the floor square and the wall's box, integrated by
-Gauss-Legendre quadrature in z × uniform φ (scipy's SH); a convex sphere's self-transfer is the clamped cosine, so
-under a point sun L it shows at world normal n: Σ_lm (Â_l/π) Y_lm(n) (T L)_lm, whatever its turn. A floor that
-nothing shadows has the clamped cosine lobe for transfer, so with albedo ρ it sends back E = ρ (Â_l/π) Y_lm(+Z)
-everywhere: a probe's matrix gains ∫ y_i [ray meets the floor] dω · E_j.
+Truth, independent of the bake: the direct-light model in closed form. A probe's transfer is T_ij = ∫ y_i V y_j dω (i to
+the arriving light's order, j to the distant light's) with V from exact ray tests against the floor square and the
+wall's box, integrated by Gauss-Legendre quadrature in z × uniform φ (scipy's SH); a convex sphere's self-transfer is
+the clamped cosine, so under a point sun L it shows at world normal n: Σ_lm (Â_l/π) Y_lm(n) (T L)_lm, whatever its turn.
+A floor that nothing shadows has the clamped cosine lobe for transfer, so with albedo ρ it sends back E = ρ (Â_l/π)
+Y_lm(+Z) everywhere: a probe's matrix gains ∫ y_i [ray meets the floor] dω · E_j.
 """
 
 import math

@@ -123,7 +123,8 @@ class Validation(WrappingJob):
         groups = {}
         for ob, meta in self.receivers:
             alone = ob.name if self._alone(ob, meta) else None
-            key = (storage.light_order(meta), meta.get("bounces") if meta["mode"] == INTERREFLECTED_MODE else None, alone)
+            bounces = meta.get("bounces") if meta["mode"] == INTERREFLECTED_MODE else None
+            key = (storage.light_order(meta), bounces, alone)
             groups.setdefault(key, LightGroup([], environments[key[0]], key[1], alone=alone is not None)
                               ).objects.append(ob)
         per_corner = {ob.name for ob, meta in self.receivers if meta.get("domain") == "CORNER"}
