@@ -94,7 +94,7 @@ def measure(ob, label, axis, degrees, samples, passes) -> dict:
     turn(ob, axis, degrees)
     check = validation.Validation(bpy.context, samples, passes, [ob.name])
     turned = check.run()[0]
-    light = check.lights[storage.read_transfer(ob.data)[1]["order"]]
+    light = check.lights[storage.light_order(storage.read_transfer(ob.data)[1])]
     static = compare("static", check.colours(ob, light), np.stack(check.cycles.radiance[ob.name]))
     return {"label": label, "rms": turned.error, "p99": turned.p99, "noise": turned.cycles_noise,
             "static_rms": static.error, "static_p99": static.p99, "cycles_s": check.cycles.time_s,
