@@ -143,6 +143,7 @@ def accuracy(args):
     suzanne, volume, placements = demo_room(resolutions[0])
     settings = bake.BakeSettings(order=args.order, mode=args.mode, samples=samples)
     SceneBake(bpy.context, settings, [suzanne.name]).run(log=log)  # her self-transfer, in her frame, once
+    place(suzanne, placements[0])
     copy = stale_copy(suzanne, volume, settings)
     bake_s = {resolutions[0]: bake_probes(volume, resolutions[0], settings)}  # Cycles sees a lit volume
     checks, stale = [], []
