@@ -93,10 +93,15 @@ def trilinear_weights(local_points, resolution, valid) -> tuple[np.ndarray, np.n
         corner_valid = np.stack([valid[np.minimum(lowest + offset, len(valid) - 1)] for offset in offsets])
         near = np.flatnonzero(~np.take(corner_valid.all(axis=0), base))
         if len(near):
-            again = weights[:, near] * corner_valid[:, base[near]]
+            # Corner by corner along rows, as above: numpy's 2-D fancy indexing of (8, N) walks it across the rows.
+            cells, again = base[near], np.empty((8, len(near)), dtype=weights.dtype)
+            for corner in range(8):
+                np.take(weights[corner], near, out=again[corner], mode="clip")
+                again[corner] *= np.take(corner_valid[corner], cells)
             total = np.add.reduce(again, axis=0)
             again /= np.where(total > 0.0, total, 1.0)
-            weights[:, near] = again
+            for corner in range(8):
+                np.put(weights[corner], near, again[corner], mode="clip")
     return indices.T.reshape(shape + (8,)), weights.T.reshape(shape + (8,))
 
 
