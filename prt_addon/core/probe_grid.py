@@ -143,7 +143,8 @@ def shade_points(transfer, lights, indices, weights, turn=None) -> np.ndarray:
     matrix products (8·3, s) by (s, m) (kept under core.arrays.SINGLE_THREAD_PRODUCT); each corner's row of products
     is then weighed and the 8 summed along rows of m, while the group is in cache. The cells sort as 16-bit keys
     where they fit, which numpy sorts by radix, 8× faster than 64-bit ones."""
-    transfer = np.asarray(transfer, dtype=np.float32)
+    # C order for np.take, which would copy the whole array for every cell otherwise.
+    transfer = np.ascontiguousarray(transfer, dtype=np.float32)
     indices = np.asarray(indices)
     count, size = len(transfer), np.shape(lights)[-1]
     if not count:
@@ -158,10 +159,10 @@ def shade_points(transfer, lights, indices, weights, turn=None) -> np.ndarray:
     around = indices[order[starts]]  # (cells, 8): each cell's probes
     reached = np.unique(around)
     used = np.empty((len(lights), 3, size), dtype=np.float32)
-    found = np.asarray(lights)[reached].reshape(-1, size)
-    used[reached] = (found if turn is None else one_thread_product(found, np.asarray(turn).T)).reshape(-1, 3, size)
-    # (8, N) with corners along the rows: trilinear_weights' own layout, whose transpose it returns.
-    by_corner = np.asarray(weights, dtype=np.float32).T
+    rows = np.asarray(lights)[reached].reshape(-1, size)
+    used[reached] = (rows if turn is None else one_thread_product(rows, np.asarray(turn).T)).reshape(-1, 3, size)
+    # (8, N) with corners along the rows: trilinear_weights' own layout, whose transpose it returns (so no copy).
+    by_corner = np.ascontiguousarray(np.asarray(weights, dtype=np.float32).T)
     largest = int(np.max(ends - starts))
     rows = np.empty((largest,) + transfer.shape[1:], dtype=np.float32)
     products, weighed = np.empty(24 * largest, dtype=np.float32), np.empty(8 * largest, dtype=np.float32)
