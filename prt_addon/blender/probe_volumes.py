@@ -27,7 +27,6 @@ import bpy
 import numpy as np
 
 from ..core import probe_grid
-from ..core.arrays import bounds, one_thread_product
 from ..core import settings as spec
 from ..core.errors import StaleBake
 from .texel_bake import OBJECT_PREFIX
@@ -160,22 +159,22 @@ def lights(probes: StoredProbes, light) -> np.ndarray:
 
 def containing(stored: list[StoredProbes], points, matrix=None) -> tuple[np.ndarray, np.ndarray]:
     """(which volume holds each of `points` (N, 3), placed in world space by `matrix` (4, 4): the index in `stored` of
-    the smallest whose cube holds it, −1 for none; the points in that volume's frame (N, 3)).
+    the smallest whose cube holds it, −1 for none; the points in that volume's frame (N, 3) float32, as
+    core.probe_grid.placed_points gives them).
 
-    A moving object inside a single volume (the usual case, and every frame of it) costs one product: the volume
-    is convex, so the object is inside when the corners of its points' bounding box are."""
-    points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    A moving object inside a single volume (the usual case, and every frame of it) costs one product and one look
+    at its largest coordinate."""
     placed = [found.to_volume @ (np.eye(4) if matrix is None else matrix) for found in stored]
     if len(stored) == 1:
-        linear, offset = placed[0][:3, :3], placed[0][:3, 3]
-        corners = np.array(np.meshgrid(*zip(*bounds(points)), indexing="ij")).reshape(3, -1).T
-        if np.all(np.abs(corners @ linear.T + offset) <= 1.0):
-            return np.zeros(len(points), dtype=np.int64), one_thread_product(points, linear.T) + offset
-    which, local = np.full(len(points), -1), np.zeros_like(points)
+        local = probe_grid.placed_points(points, placed[0])
+        if np.abs(local).max(initial=0.0) <= 1.0:
+            return np.zeros(len(local), dtype=np.int64), local
+    count = len(np.asarray(points).reshape(-1, 3))
+    which, local = np.full(count, -1), np.zeros((count, 3), dtype=np.float32)
     # Largest first, so that a smaller volume inside it takes its points over.
     for index in sorted(range(len(stored)), key=lambda k: abs(np.linalg.det(stored[k].to_volume[:3, :3]))):
-        mine = one_thread_product(points, placed[index][:3, :3].T) + placed[index][:3, 3]
-        inside = (np.abs(mine[:, 0]) <= 1.0) & (np.abs(mine[:, 1]) <= 1.0) & (np.abs(mine[:, 2]) <= 1.0)
+        mine = probe_grid.placed_points(points, placed[index])
+        inside = np.abs(mine).max(axis=1) <= 1.0
         which[inside], local[inside] = index, mine[inside]
     return which, local
 

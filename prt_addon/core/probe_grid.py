@@ -17,7 +17,7 @@ without forming one matrix per vertex (shade_points).
 
 import numpy as np
 
-from .arrays import one_thread_product
+from .arrays import SINGLE_THREAD_PRODUCT, one_thread_product
 
 
 def probe_points(resolution) -> np.ndarray:
@@ -32,54 +32,98 @@ def probe_positions(matrix_world, resolution) -> np.ndarray:
     return probe_points(resolution) @ matrix[:3, :3].T + matrix[:3, 3]
 
 
+def placed_points(points, matrix) -> np.ndarray:
+    """(N, 3) float32 points (N, 3) through the affine `matrix` (4, 4), e.g. into a volume's frame: the transpose
+    of a (3, N) array, so that trilinear_weights reads each axis contiguous. Float32 is what a moving object's
+    vertices are stored in, and halves the memory the weights pass through."""
+    matrix = np.asarray(matrix, dtype=np.float32)
+    points = np.asarray(points, dtype=np.float32).reshape(-1, 3)
+    placed = np.empty((3, len(points)), dtype=np.float32)
+    step = max(1, SINGLE_THREAD_PRODUCT // 9)
+    for first in range(0, len(points), step):
+        np.matmul(matrix[:3, :3], points[first:first + step].T, out=placed[:, first:first + step])
+    placed += matrix[:3, 3, None]
+    return placed.T
+
+
 def trilinear_weights(local_points, resolution, valid) -> tuple[np.ndarray, np.ndarray]:
     """(probe indices (..., 8), weights (..., 8)) of points (..., 3) in the volume's frame: the corners of each
     point's cell of probe centres, weighted trilinearly over the valid ones (`valid` (P,) bool) and renormalised to
     sum to 1; all zero where none of them is valid. Along an axis of one probe, that probe carries the weight. The
     first index is the cell's own (its lowest corner), so points with the same first index share all 8 probes.
+    Weighed in float32 for float32 points (a moving object's vertices, every update), else in float64.
 
-    Column by column, corner by corner: numpy works an (N, 3) or (N, 8) array along its short rows with an inner
-    loop of 3 or 8 (core.arrays), and these weights are formed for every vertex of a moving object at every update."""
+    Column by column, corner by corner, into (8, N) arrays returned transposed (views, F-ordered): numpy works an
+    (N, 3) or (N, 8) array along its short rows with an inner loop of 3 or 8 (core.arrays), and shade_points takes
+    each corner's weights as one contiguous row."""
     resolution = [int(n) for n in resolution]
-    points = np.asarray(local_points, dtype=np.float64)
+    points = np.asarray(local_points)
+    points = points.astype(np.float32 if points.dtype == np.float32 else np.float64, copy=False)
     shape = points.shape[:-1]
     points = points.reshape(-1, 3)
     strides = (resolution[1] * resolution[2], resolution[2], 1)
-    base = np.zeros(len(points), dtype=np.int64)
+    base = np.zeros(len(points), dtype=np.int32)  # half the memory of intp, and it indexes as well
     sides, steps = [], []
     for axis, count in enumerate(resolution):
         # The point in probe units: probe i sits at i, the lattice spans 0..n−1; clamped onto it.
-        grid = np.clip((points[:, axis] + 1.0) * (count / 2.0) - 0.5, 0.0, count - 1)
-        low = np.minimum(grid.astype(np.int64), max(count - 2, 0))  # grid ≥ 0: truncation is the floor
+        grid = points[:, axis] * points.dtype.type(count / 2.0)
+        grid += points.dtype.type(count / 2.0 - 0.5)
+        np.clip(grid, 0.0, count - 1, out=grid)
+        low = np.minimum(np.floor(grid), max(count - 2, 0))
         fraction = grid - low
-        base += low * strides[axis]
+        low = low.astype(np.int32)
+        low *= strides[axis]
+        base += low
         sides.append((1.0 - fraction, fraction))
         # An axis of one probe repeats it, with weight 0 on the repeat.
         steps.append(min(1, count - 1) * strides[axis])
-    weights = np.empty((8, len(points)))
-    offsets = np.empty(8, dtype=np.int64)
-    for corner in range(8):  # x slowest
+    offsets = [x * steps[0] + y * steps[1] + z * steps[2] for x in (0, 1) for y in (0, 1) for z in (0, 1)]  # x slowest
+    weights = np.empty((8, len(points)), dtype=points.dtype)
+    indices = np.empty((8, len(points)), dtype=np.int32)
+    for corner, offset in enumerate(offsets):
         x, y, z = corner >> 2, (corner >> 1) & 1, corner & 1
         np.multiply(sides[0][x], sides[1][y], out=weights[corner])
         weights[corner] *= sides[2][z]
-        offsets[corner] = x * steps[0] + y * steps[1] + z * steps[2]
-    indices = base[:, None] + offsets
+        np.add(base, offset, out=indices[corner])
     valid = np.asarray(valid, dtype=bool)
     if not valid.all():
-        weights *= valid[indices].T
-        total = sum(weights[corner] for corner in range(8))
-        weights /= np.where(total > 0.0, total, 1.0)
-    return indices.reshape(shape + (8,)), weights.T.reshape(shape + (8,))
+        # Each cell's corners' validity, by its lowest probe (a table of P): only the points of cells with an invalid
+        # corner are weighed again, usually the few beside a wall.
+        lowest = np.arange(len(valid))
+        corner_valid = np.stack([valid[np.minimum(lowest + offset, len(valid) - 1)] for offset in offsets])
+        near = np.flatnonzero(~np.take(corner_valid.all(axis=0), base))
+        if len(near):
+            # Corner by corner along rows, as above: numpy's 2-D fancy indexing of (8, N) walks it across the rows.
+            cells, again = base[near], np.empty((8, len(near)), dtype=weights.dtype)
+            for corner in range(8):
+                np.take(weights[corner], near, out=again[corner], mode="clip")
+                again[corner] *= np.take(corner_valid[corner], cells)
+            total = np.add.reduce(again, axis=0)
+            again /= np.where(total > 0.0, total, 1.0)
+            for corner in range(8):
+                np.put(weights[corner], near, again[corner], mode="clip")
+    return indices.T.reshape(shape + (8,)), weights.T.reshape(shape + (8,))
 
 
 def probe_lights(matrices, light) -> np.ndarray:
-    """(P, 3, n²) the SH of the radiance arriving at each probe from the distant light (3, n²): T_p L, one product
-    per probe, each channel through its own matrix where they are coloured (matrices (P, C, n², n²), C = 1 or 3).
-    Computed once per light change; every point's light is then a blend of these (blend, shade_points)."""
+    """(P, 3, R) the SH of the radiance arriving at each probe from the distant light (3, n²): T_p L, one product
+    per probe, each channel through its own matrix where they are coloured (matrices (P, C, R, n²), C = 1 or 3; R
+    is n² for square ones, or more where the arriving light keeps a higher order than the light's). In the
+    matrices' precision: float32 as a bake stores them, float64 where a reference gives them so. Computed once per
+    light change; every point's light is then a blend of these (blend, shade_points).
+
+    Real matrix products, not einsum (3-7× slower here): a product per probe, numpy looping over them in C; grey,
+    the light's 3 channels by the probe's matrix at once."""
     matrices = np.asarray(matrices)
-    if matrices.shape[1] == 1:
-        return np.einsum("pij,cj->pci", matrices[:, 0], light)
-    return np.einsum("pcij,cj->pci", matrices, light)
+    count, channels, rows = matrices.shape[:3]
+    light = np.asarray(light, dtype=np.result_type(matrices.dtype, np.float32))
+    found = np.empty((count, 3, rows), dtype=np.result_type(matrices.dtype, light.dtype))
+    if channels == 1:
+        np.matmul(light, matrices[:, 0].transpose(0, 2, 1), out=found)
+    else:
+        for channel in range(3):
+            np.matmul(matrices[:, channel], light[channel], out=found[:, channel])
+    return found
 
 
 def blend(lights, indices, weights) -> np.ndarray:
@@ -88,33 +132,69 @@ def blend(lights, indices, weights) -> np.ndarray:
     return np.einsum("...k,...kcj->...cj", weights, lights[indices])
 
 
-def shade_points(transfer, lights, indices, weights) -> np.ndarray:
-    """(N, 3) float32 radiance Σ_k w_k transfer · lights[p_k] at N shading points, transfer (N, n²) (grey) or
-    (N, 3, n²) (coloured: channel by channel), with their probes' indices and weights (N, 8) from trilinear_weights.
+def shade_points(transfer, lights, indices, weights, turn=None) -> np.ndarray:
+    """(N, 3) float32 radiance Σ_k w_k transfer · lights[p_k] at N shading points, transfer (N, s) (grey) or
+    (N, 3, s) (coloured: channel by channel), with their probes' indices and weights (N, 8) from trilinear_weights,
+    from the probes' lights (P, 3, s); `turn` (s, s): a rotation of SH (core.rotation.sh_matrix) the lights are taken
+    through first (lights @ turn.T), applied to the probes the points reach only.
 
     The same as shading each point with its blend(), without gathering 8 probes' lights per point: points are
     grouped by their cell, whose 8 probes they share, and each group's transfer rows meet those probes' lights in
-    one matrix product, (m, n²) by (n², 8·3); each point then weighs its 8 products (one (1, 8) by (8, 3) product).
-    The cells sort as 16-bit keys where they fit, which numpy sorts by radix, 8× faster than 64-bit ones."""
-    count, size = len(transfer), lights.shape[-1]
+    matrix products (8·3, s) by (s, m) (kept under core.arrays.SINGLE_THREAD_PRODUCT); each corner's row of products
+    is then weighed and the 8 summed along rows of m, while the group is in cache. The cells sort as 16-bit keys
+    where they fit, which numpy sorts by radix, 8× faster than 64-bit ones."""
+    # C order for np.take, which would copy the whole array for every cell otherwise.
+    transfer = np.ascontiguousarray(transfer, dtype=np.float32)
+    indices = np.asarray(indices)
+    count, size = len(transfer), np.shape(lights)[-1]
+    if not count:
+        return np.zeros((count, 3), dtype=np.float32)
     cells = indices[:, 0]
-    key = cells.astype(np.int16) if count and int(cells.max()) < np.iinfo(np.int16).max else cells
-    order = np.argsort(key, kind="stable")
+    if int(cells.max()) < np.iinfo(np.int16).max:
+        cells = cells.astype(np.int16)
+    order = np.argsort(cells, kind="stable")
     cells = cells[order]
-    starts = np.flatnonzero(np.r_[True, cells[1:] != cells[:-1]]) if count else np.zeros(0, dtype=np.int64)
-    ends = np.r_[starts[1:], count].astype(np.int64)
-    # np.take rather than indexing: 2-3× faster on rows this short.
-    rows = np.take(np.asarray(transfer, dtype=np.float32), order, axis=0)
-    lights = np.asarray(lights, dtype=np.float32)
-    products = np.empty((count, 8, 3), dtype=np.float32)
-    for start, end in zip(starts, ends):
-        around = lights[indices[order[start]]]  # (8, 3, n²)
-        if rows.ndim == 2:
-            products[start:end] = one_thread_product(rows[start:end], around.reshape(-1, size).T).reshape(-1, 8, 3)
+    starts = np.flatnonzero(np.r_[True, cells[1:] != cells[:-1]])
+    ends = np.r_[starts[1:], count]
+    around = indices[order[starts]]  # (cells, 8): each cell's probes
+    reached = np.unique(around)
+    used = np.empty((len(lights), 3, size), dtype=np.float32)
+    rows = np.asarray(lights)[reached].reshape(-1, size)
+    used[reached] = (rows if turn is None else one_thread_product(rows, np.asarray(turn).T)).reshape(-1, 3, size)
+    # (8, N) with corners along the rows: trilinear_weights' own layout, whose transpose it returns (so no copy).
+    by_corner = np.ascontiguousarray(np.asarray(weights, dtype=np.float32).T)
+    largest = int(np.max(ends - starts))
+    rows = np.empty((largest,) + transfer.shape[1:], dtype=np.float32)
+    products, weighed = np.empty(24 * largest, dtype=np.float32), np.empty(8 * largest, dtype=np.float32)
+    shaded = np.empty((3, count), dtype=np.float32)  # in the cells' order
+    for probes, start, end in zip(around, starts.tolist(), ends.tolist()):
+        points, m = order[start:end], end - start
+        # np.take's mode "clip" writes straight into `out` ("raise" goes through a temporary).
+        block = np.take(transfer, points, axis=0, out=rows[:m], mode="clip")
+        cell, found = used[probes], products[:24 * m].reshape(8, 3, m)
+        if transfer.ndim == 2:
+            _product_into(cell.reshape(24, size), block, found.reshape(24, m))
         else:
             for channel in range(3):
-                products[start:end, :, channel] = one_thread_product(rows[start:end, channel], around[:, channel].T)
-    radiance = np.empty((count, 3), dtype=np.float32)
-    weights = np.take(np.asarray(weights, dtype=np.float32, order="C"), order, axis=0)
-    radiance[order] = np.matmul(weights[:, None, :], products)[:, 0]
-    return radiance
+                _product_into(cell[:, channel], block[:, channel], found[:, channel])
+        found *= np.take(by_corner, points, axis=1, out=weighed[:8 * m].reshape(8, m), mode="clip")[:, None]
+        np.add.reduce(found, axis=0, out=shaded[:, start:end])
+    # Back to the points' order by a gather through the inverse order: 2× faster than scattering through `order`.
+    place = np.empty(count, dtype=np.intp)
+    place[order] = np.arange(count)
+    return np.take(shaded, place, axis=1).T
+
+
+def _product_into(matrix, rows, out):
+    """out (r, m) = matrix (r, s) @ rows (m, s)ᵀ in pieces small enough for OpenBLAS to use one thread
+    (core.arrays.SINGLE_THREAD_PRODUCT), the whole pieces in one stacked call: numpy loops over them in C, which
+    halves the time of a loop in Python over pieces this small."""
+    count, size = rows.shape
+    step = max(1, SINGLE_THREAD_PRODUCT // (len(matrix) * size))
+    whole = count - count % step
+    if whole:
+        # Both reshapes split an axis, so they are views: the products land in `out`.
+        np.matmul(matrix, rows[:whole].reshape(-1, step, size).transpose(0, 2, 1),
+                  out=out[:, :whole].reshape(len(matrix), -1, step).transpose(1, 0, 2))
+    if whole < count:
+        np.matmul(matrix, rows[whole:].T, out=out[:, whole:])

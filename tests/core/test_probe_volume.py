@@ -196,3 +196,78 @@ def test_shading_points_by_cell_is_each_points_transfer_against_its_blended_ligh
                 row = transfer[n] if channels == 1 else transfer[n, c]
                 expected[n, c] += weights[n, k] * row @ arriving
     np.testing.assert_allclose(shown, expected, rtol=1e-4, atol=1e-4 * np.abs(expected).max())
+
+
+def points_in_and_around(rng, count):
+    """Points over a few cells, most of them crowded into two (more than one product's piece each), some outside
+    the lattice (clamped onto its faces) and some outside the cube."""
+    return np.vstack([rng.uniform(-1.3, 1.3, (count // 4, 3)), rng.normal(0.3, 0.05, (count // 3, 3)),
+                      rng.normal(-0.4, 0.05, (count // 3, 3)), [[0.0, 0.0, 0.0], [5.0, -5.0, 5.0]]])
+
+
+@pytest.mark.parametrize("size", [16, 36])
+@pytest.mark.parametrize("channels", [1, 3])
+@pytest.mark.parametrize("turned", [False, True])
+def test_shade_points_is_each_points_transfer_against_its_blend(size, channels, turned):
+    """Against blend() point by point, dotted with the point's transfer row (channel by channel where coloured),
+    the probes' lights taken through `turn` first where given; a corner of probes inside geometry, and a cell all of
+    whose probes are."""
+    rng = np.random.default_rng(size + channels + turned)
+    resolution = (4, 3, 2)
+    count = int(np.prod(resolution))
+    lights = rng.standard_normal((count, 3, size))
+    valid = rng.random(count) > 0.2
+    valid[[0, 1, 2, 3, 6, 7, 8, 9]] = False  # every probe of the lowest cell
+    points = points_in_and_around(rng, 2000)
+    indices, weights = probe_grid.trilinear_weights(points, resolution, valid)
+    transfer = rng.standard_normal((len(points), size) if channels == 1 else (len(points), 3, size))
+    turn = np.linalg.qr(rng.standard_normal((size, size)))[0] if turned else None
+    shown = probe_grid.shade_points(transfer.astype(np.float32), lights, indices, weights, turn)
+    reached = lights if turn is None else lights @ turn.T
+    expected = np.array([(row * probe_grid.blend(reached, point_indices, point_weights)).sum(axis=-1)
+                         for row, point_indices, point_weights in zip(transfer, indices, weights)])
+    assert shown.shape == (len(points), 3) and shown.dtype == np.float32
+    assert np.any(np.all(weights == 0.0, axis=1))  # some point of the lowest cell, with no light
+    np.testing.assert_allclose(shown, expected, rtol=0, atol=2e-5 * np.abs(expected).max())
+
+
+def test_shade_points_of_no_points():
+    shown = probe_grid.shade_points(np.zeros((0, SIZE)), np.ones((8, 3, SIZE)), np.zeros((0, 8), dtype=int),
+                                    np.zeros((0, 8)))
+    assert shown.shape == (0, 3)
+
+
+@pytest.mark.parametrize("channels", [1, 3])
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_probe_lights_are_each_probes_matrix_times_the_light(channels, dtype):
+    """Rectangular matrices (P, C, 36, 16) take an order-4 light to each probe's order-6 light, channel by channel
+    where coloured, in the matrices' precision."""
+    rng = np.random.default_rng(channels)
+    matrices = rng.standard_normal((7, channels, 36, 16)).astype(dtype)
+    light = rng.standard_normal((3, 16))
+    found = probe_grid.probe_lights(matrices, light)
+    expected = np.array([[matrices[p, min(c, channels - 1)].astype(np.float64) @ light[c] for c in range(3)]
+                         for p in range(7)])
+    assert found.shape == (7, 3, 36) and found.dtype == dtype and found.flags.c_contiguous
+    np.testing.assert_allclose(found, expected, rtol=0, atol=(1e-5 if dtype == np.float32 else 1e-12) * 10)
+
+
+def test_points_placed_in_float32_are_the_affine_map_of_them():
+    rng = np.random.default_rng(4)
+    matrix = np.vstack([rng.standard_normal((3, 4)), [0.0, 0.0, 0.0, 1.0]])
+    points = rng.uniform(-2.0, 2.0, (100_000, 3))  # several single-thread pieces
+    placed = probe_grid.placed_points(points, matrix)
+    assert placed.shape == (100_000, 3) and placed.dtype == np.float32
+    np.testing.assert_allclose(placed, points @ matrix[:3, :3].T + matrix[:3, 3], rtol=0, atol=5e-6)
+
+
+def test_weights_of_float32_points_are_those_of_float64_points():
+    """In float32 for a moving object's vertices: the same probes, the weights within float32's rounding."""
+    rng = np.random.default_rng(6)
+    points = points_in_and_around(rng, 3000).astype(np.float32)
+    valid = rng.random(4 * 3 * 2) > 0.3
+    indices, weights = probe_grid.trilinear_weights(points, (4, 3, 2), valid)
+    exact_indices, exact_weights = probe_grid.trilinear_weights(points.astype(np.float64), (4, 3, 2), valid)
+    assert weights.dtype == np.float32 and exact_weights.dtype == np.float64
+    np.testing.assert_array_equal(indices, exact_indices)
+    np.testing.assert_allclose(weights, exact_weights, rtol=0, atol=1e-5)
