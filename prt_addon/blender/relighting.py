@@ -8,6 +8,7 @@ call it; a command may use its own. Its own writes change nothing it watches, an
 """
 
 from contextlib import contextmanager
+import math
 
 import bpy
 import numpy as np
@@ -15,7 +16,6 @@ import numpy as np
 from ..core import lights as core_lights
 from ..core import probe_grid, rotation, sh, shading
 from ..core import settings as spec
-from ..core.arrays import one_thread_product
 from ..core.errors import StaleBake
 from . import display, heatmaps, layouts, probe_volumes, storage
 from .fingerprint import placement_changes
@@ -265,7 +265,8 @@ def dynamic_radiance(ob, placed, baked, points, light, probes) -> np.ndarray | N
 
     Each point is shaded from the light arriving at it, Σ w_p T_p L, turned into the object's frame; the probes'
     lights T_p L come once per light change (probe_volumes.lights) and are turned before they are blended (a rotation
-    is linear), so a point costs its share of one product per cell (core.probe_grid.shade_points). A point outside
+    is linear), those the points reach only, so a point costs its share of one product per cell
+    (core.probe_grid.shade_points). A point outside
     every volume gets the distant light. Lights are fitted to the transfer's order (core.sh.fitted)."""
     probes = [found for found in probes if found.order ** 2 == light.shape[-1]]
     if points is None or probe_light_of(ob) != "vertex" or not probes:
@@ -277,18 +278,20 @@ def dynamic_radiance(ob, placed, baked, points, light, probes) -> np.ndarray | N
         rows = which == index
         every = bool(rows.all())  # the usual case: the whole object in one volume, no copies
         transfer = baked.transfer if every else baked.transfer[rows]
+        size = transfer.shape[-1]
         if index < 0:
-            found = shading.shade(transfer, rotation.rotate(sh.fitted(light, transfer.shape[-1]), turn))
+            found = shading.shade(transfer, rotation.rotate(sh.fitted(light, size), turn))
         else:
             indices, weights = probe_grid.trilinear_weights(local if every else local[rows], probes[index].resolution,
                                                             probes[index].valid)
-            arriving = probe_volumes.lights(probes[index], light)  # (P, 3, n²)
-            in_frame = one_thread_product(arriving.reshape(-1, arriving.shape[-1]),
-                                          rotation.sh_matrix(probes[index].received_order, turn).T
-                                          ).reshape(arriving.shape)
-            in_frame = sh.fitted(in_frame, transfer.shape[-1])
-            found = probe_grid.shade_points(transfer, in_frame, indices, weights)
-        radiance[slice(None) if every else rows] = found
+            # Fitted, then turned by shade_points on the probes the points reach only: a rotation of SH is
+            # block-diagonal by band, so cutting or padding bands before it or after it is the same.
+            arriving = sh.fitted(probe_volumes.lights(probes[index], light), size)  # (P, 3, N²)
+            found = probe_grid.shade_points(transfer, arriving, indices, weights,
+                                            rotation.sh_matrix(math.isqrt(size), turn))
+        if every:
+            return found
+        radiance[rows] = found
     return radiance
 
 
