@@ -316,9 +316,10 @@ def main(argv=None):
 def goals(results: dict) -> list:
     """The goals of the parts this run measured, as benchmarks/results.py records them."""
     found = []
-    if "accuracy" in results:
-        bounces = ", interreflected" if results["accuracy"]["mode"] == "interreflected" else ""
-        found.append(result_files.goal(f"worst placement at the finest probe spacing, RMS against Cycles{bounces}",
+    # Interreflected, a dynamic object near a surface gets its bounce without its own shadow on it (it casts none
+    # on the static scene): its figures are recorded, and judged apart.
+    if results.get("accuracy", {}).get("mode") == "shadowed":
+        found.append(result_files.goal("worst placement at the finest probe spacing, RMS against Cycles",
                                        100 * results["accuracy"]["finest_worst"], "<=", 100 * GOAL_RMS, "%"))
     if "live" in results:
         live = results["live"]

@@ -165,17 +165,22 @@ def containing(stored: list[StoredProbes], points, matrix=None) -> tuple[np.ndar
     A moving object inside a single volume (the usual case, and every frame of it) costs one product and one look
     at its largest coordinate."""
     placed = [found.to_volume @ (np.eye(4) if matrix is None else matrix) for found in stored]
+    known = {}
     if len(stored) == 1:
         local = probe_grid.placed_points(points, placed[0])
         if np.abs(local).max(initial=0.0) <= 1.0:
             return np.zeros(len(local), dtype=np.int64), local
+        known[0] = local
     count = len(np.asarray(points).reshape(-1, 3))
-    which, local = np.full(count, -1), np.zeros((count, 3), dtype=np.float32)
+    # Column by column, in placed_points' layout (each axis contiguous): numpy works (N, 3) rows with a loop of 3.
+    which, local = np.full(count, -1), np.zeros((3, count), dtype=np.float32).T
     # Largest first, so that a smaller volume inside it takes its points over.
     for index in sorted(range(len(stored)), key=lambda k: abs(np.linalg.det(stored[k].to_volume[:3, :3]))):
-        mine = probe_grid.placed_points(points, placed[index])
-        inside = np.abs(mine).max(axis=1) <= 1.0
-        which[inside], local[inside] = index, mine[inside]
+        mine = known[index] if index in known else probe_grid.placed_points(points, placed[index])
+        inside = (np.abs(mine[:, 0]) <= 1.0) & (np.abs(mine[:, 1]) <= 1.0) & (np.abs(mine[:, 2]) <= 1.0)
+        which[inside] = index
+        for axis in range(3):
+            np.copyto(local[:, axis], mine[:, axis], where=inside)
     return which, local
 
 

@@ -273,23 +273,23 @@ def dynamic_radiance(ob, placed, baked, points, light, probes) -> np.ndarray | N
         return None
     which, local = probe_volumes.containing(probes, points, np.array(placed.matrix_world, dtype=np.float64))
     turn = np.array(placed.matrix_world.to_quaternion().to_matrix(), dtype=np.float64).T
+    size = baked.transfer.shape[-1]
+    through = [index for index in np.flatnonzero(np.bincount(which + 1, minlength=len(probes) + 1)) - 1]
     radiance = np.empty((len(points), 3), dtype=np.float32)
-    for index in (which[:1] if which.min() == which.max() else np.unique(which)):
-        rows = which == index
-        every = bool(rows.all())  # the usual case: the whole object in one volume, no copies
-        transfer = baked.transfer if every else baked.transfer[rows]
-        size = transfer.shape[-1]
+    for index in through:  # −1: outside every volume
+        rows = None if len(through) == 1 else np.flatnonzero(which == index)  # the usual case: one volume, no copies
         if index < 0:
+            transfer = baked.transfer if rows is None else np.take(baked.transfer, rows, axis=0)
             found = shading.shade(transfer, rotation.rotate(sh.fitted(light, size), turn))
         else:
-            indices, weights = probe_grid.trilinear_weights(local if every else local[rows], probes[index].resolution,
-                                                            probes[index].valid)
+            indices, weights = probe_grid.trilinear_weights(local if rows is None else local[rows],
+                                                            probes[index].resolution, probes[index].valid)
             # Fitted, then turned by shade_points on the probes the points reach only: a rotation of SH is
             # block-diagonal by band, so cutting or padding bands before it or after it is the same.
             arriving = sh.fitted(probe_volumes.lights(probes[index], light), size)  # (P, 3, N²)
-            found = probe_grid.shade_points(transfer, arriving, indices, weights,
-                                            rotation.sh_matrix(math.isqrt(size), turn))
-        if every:
+            found = probe_grid.shade_points(baked.transfer, arriving, indices, weights,
+                                            rotation.sh_matrix(math.isqrt(size), turn), rows)
+        if rows is None:
             return found
         radiance[rows] = found
     return radiance

@@ -132,11 +132,12 @@ def blend(lights, indices, weights) -> np.ndarray:
     return np.einsum("...k,...kcj->...cj", weights, lights[indices])
 
 
-def shade_points(transfer, lights, indices, weights, turn=None) -> np.ndarray:
+def shade_points(transfer, lights, indices, weights, turn=None, rows=None) -> np.ndarray:
     """(N, 3) float32 radiance Σ_k w_k transfer · lights[p_k] at N shading points, transfer (N, s) (grey) or
     (N, 3, s) (coloured: channel by channel), with their probes' indices and weights (N, 8) from trilinear_weights,
     from the probes' lights (P, 3, s); `turn` (s, s): a rotation of SH (core.rotation.sh_matrix) the lights are taken
-    through first (lights @ turn.T), applied to the probes the points reach only.
+    through first (lights @ turn.T), applied to the probes the points reach only. `rows` (N,): the points' rows of
+    `transfer` where it holds more (an object partly in a volume), read in place rather than copied.
 
     The same as shading each point with its blend(), without gathering 8 probes' lights per point: points are
     grouped by their cell, whose 8 probes they share, and each group's transfer rows meet those probes' lights in
@@ -146,13 +147,14 @@ def shade_points(transfer, lights, indices, weights, turn=None) -> np.ndarray:
     # C order for np.take, which would copy the whole array for every cell otherwise.
     transfer = np.ascontiguousarray(transfer, dtype=np.float32)
     indices = np.asarray(indices)
-    count, size = len(transfer), np.shape(lights)[-1]
+    count, size = len(indices), np.shape(lights)[-1]
     if not count:
         return np.zeros((count, 3), dtype=np.float32)
     cells = indices[:, 0]
     if int(cells.max()) < np.iinfo(np.int16).max:
         cells = cells.astype(np.int16)
     order = np.argsort(cells, kind="stable")
+    sources = order if rows is None else np.asarray(rows)[order]  # each point's transfer row, in the cells' order
     cells = cells[order]
     starts = np.flatnonzero(np.r_[True, cells[1:] != cells[:-1]])
     ends = np.r_[starts[1:], count]
@@ -164,13 +166,13 @@ def shade_points(transfer, lights, indices, weights, turn=None) -> np.ndarray:
     # (8, N) with corners along the rows: trilinear_weights' own layout, whose transpose it returns (so no copy).
     by_corner = np.ascontiguousarray(np.asarray(weights, dtype=np.float32).T)
     largest = int(np.max(ends - starts))
-    rows = np.empty((largest,) + transfer.shape[1:], dtype=np.float32)
+    gathered = np.empty((largest,) + transfer.shape[1:], dtype=np.float32)
     products, weighed = np.empty(24 * largest, dtype=np.float32), np.empty(8 * largest, dtype=np.float32)
     shaded = np.empty((3, count), dtype=np.float32)  # in the cells' order
     for probes, start, end in zip(around, starts.tolist(), ends.tolist()):
         points, m = order[start:end], end - start
         # np.take's mode "clip" writes straight into `out` ("raise" goes through a temporary).
-        block = np.take(transfer, points, axis=0, out=rows[:m], mode="clip")
+        block = np.take(transfer, sources[start:end], axis=0, out=gathered[:m], mode="clip")
         cell, found = used[probes], products[:24 * m].reshape(8, 3, m)
         if transfer.ndim == 2:
             _product_into(cell.reshape(24, size), block, found.reshape(24, m))

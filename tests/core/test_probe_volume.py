@@ -231,6 +231,19 @@ def test_shade_points_is_each_points_transfer_against_its_blend(size, channels, 
     np.testing.assert_allclose(shown, expected, rtol=0, atol=2e-5 * np.abs(expected).max())
 
 
+def test_shade_points_reads_the_rows_it_is_given_of_a_larger_transfer():
+    """An object partly in a volume: its points there shade from their own rows of the whole transfer, as from a
+    copy of those rows."""
+    rng = np.random.default_rng(9)
+    resolution, size = (3, 3, 2), 36
+    lights = rng.standard_normal((18, 3, size))
+    transfer = rng.standard_normal((500, size)).astype(np.float32)
+    rows = np.sort(rng.choice(500, 300, replace=False))
+    indices, weights = probe_grid.trilinear_weights(rng.uniform(-1, 1, (300, 3)), resolution, np.ones(18, bool))
+    np.testing.assert_array_equal(probe_grid.shade_points(transfer, lights, indices, weights, rows=rows),
+                                  probe_grid.shade_points(transfer[rows], lights, indices, weights))
+
+
 def test_shade_points_of_no_points():
     shown = probe_grid.shade_points(np.zeros((0, SIZE)), np.ones((8, 3, SIZE)), np.zeros((0, 8), dtype=int),
                                     np.zeros((0, 8)))
