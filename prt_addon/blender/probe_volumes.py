@@ -63,7 +63,7 @@ class StoredProbes:
     order: int
     received_order: int
     bake_id: str = ""
-    last_light: tuple | None = None  # (light bytes, its probes' lights): see lights()
+    last_light: tuple | None = None  # (light bytes, its probes' lights, which are formed): see lights()
 
 
 def is_probe_volume(ob) -> bool:
@@ -148,13 +148,23 @@ def read(ob) -> StoredProbes:
                         np.linalg.inv(placement), resolution, order, meta["received_order"], meta.get("bake_id", ""))
 
 
-def lights(probes: StoredProbes, light) -> np.ndarray:
-    """(P, 3, N²) each probe's incoming light under the distant light (3, n²) (core.probe_grid.probe_lights), kept
-    with the probes for the last light: a light change costs one product per probe, a moving object none."""
+def lights(probes: StoredProbes, light, needed=None) -> np.ndarray:
+    """(P, 3, N²) each probe's incoming light under the distant light (3, n²) (core.probe_grid.probe_lights), those
+    of the probes `needed` (indices; None: all) at least, the others' rows left unfilled. Kept with the probes for
+    the last light: a light change costs one product per probe at most, and a moving object only those of the
+    probes it reaches that were not yet formed."""
     key = light.tobytes()
     if probes.last_light is None or probes.last_light[0] != key:
-        probes.last_light = key, probe_grid.probe_lights(probes.matrices, light)
-    return probes.last_light[1]
+        rows = (len(probes.valid), 3, probes.matrices.shape[2])
+        probes.last_light = key, np.empty(rows, dtype=probes.matrices.dtype), np.zeros(len(probes.valid), dtype=bool)
+    _, found, formed = probes.last_light
+    missing = np.flatnonzero(~formed) if needed is None else needed[~formed[needed]]
+    if len(missing) == len(formed):
+        found[:] = probe_grid.probe_lights(probes.matrices, light)
+    elif len(missing):
+        found[missing] = probe_grid.probe_lights(probes.matrices[missing], light)
+    formed[missing] = True
+    return found
 
 
 def containing(stored: list[StoredProbes], points, matrix=None) -> tuple[np.ndarray, np.ndarray]:
@@ -193,4 +203,4 @@ def light_at(stored: list[StoredProbes], point, light) -> np.ndarray | None:
         return None
     probes = stored[which[0]]
     indices, weights = probe_grid.trilinear_weights(local[0], probes.resolution, probes.valid)
-    return probe_grid.blend(lights(probes, light), indices, weights)
+    return probe_grid.blend(lights(probes, light, indices), indices, weights)

@@ -263,10 +263,10 @@ def dynamic_radiance(ob, placed, baked, points, light, probes) -> np.ndarray | N
     it is lit at its centre (dynamic_light): by its setting, as a texel bake (no points), or without probes of the
     light's order.
 
-    Each point is shaded from the light arriving at it, Σ w_p T_p L, turned into the object's frame; the probes'
-    lights T_p L come once per light change (probe_volumes.lights) and are turned before they are blended (a rotation
-    is linear), those the points reach only, so a point costs its share of one product per cell
-    (core.probe_grid.shade_points). A point outside
+    Each point is shaded from the light arriving at it, Σ w_p T_p L, turned into the object's frame; the lights T_p L
+    of the probes around the object come at most once per light change (probe_volumes.lights) and are turned before
+    they are blended (a rotation is linear), those the points reach only, so a point costs its share of one product
+    per cell (core.probe_grid.shade_points). A point outside
     every volume gets the distant light. Lights are fitted to the transfer's order (core.sh.fitted)."""
     probes = [found for found in probes if found.order ** 2 == light.shape[-1]]
     if points is None or probe_light_of(ob) != "vertex" or not probes:
@@ -282,11 +282,13 @@ def dynamic_radiance(ob, placed, baked, points, light, probes) -> np.ndarray | N
             transfer = baked.transfer if rows is None else np.take(baked.transfer, rows, axis=0)
             found = shading.shade(transfer, rotation.rotate(sh.fitted(light, size), turn))
         else:
-            indices, weights = probe_grid.trilinear_weights(local if rows is None else local[rows],
-                                                            probes[index].resolution, probes[index].valid)
-            # Fitted, then turned by shade_points on the probes the points reach only: a rotation of SH is
-            # block-diagonal by band, so cutting or padding bands before it or after it is the same.
-            arriving = sh.fitted(probe_volumes.lights(probes[index], light), size)  # (P, 3, N²)
+            mine = local if rows is None else local[rows]
+            indices, weights = probe_grid.trilinear_weights(mine, probes[index].resolution, probes[index].valid)
+            # The lights of the probes around the object only; fitted, then turned by shade_points on those the
+            # points reach: a rotation of SH is block-diagonal by band, so cutting or padding bands before it or
+            # after it is the same.
+            needed = probe_grid.probes_spanned(mine, probes[index].resolution)
+            arriving = sh.fitted(probe_volumes.lights(probes[index], light, needed), size)  # (P, 3, N²)
             found = probe_grid.shade_points(baked.transfer, arriving, indices, weights,
                                             rotation.sh_matrix(math.isqrt(size), turn), rows)
         if rows is None:

@@ -105,6 +105,23 @@ def trilinear_weights(local_points, resolution, valid) -> tuple[np.ndarray, np.n
     return indices.T.reshape(shape + (8,)), weights.T.reshape(shape + (8,))
 
 
+def probes_spanned(local_points, resolution) -> np.ndarray:
+    """(K,) the probes of the box of lattice cells that holds points (N, 3) in the volume's frame, one probe wider on
+    every side: at least the 8 around each point (trilinear_weights), found from each axis' least and greatest
+    coordinate only, so that a moving object's probes' lights can be formed for it alone."""
+    points = np.asarray(local_points).reshape(-1, 3)
+    ranges = []
+    for axis, count in enumerate(int(n) for n in resolution):
+        if not len(points):
+            ranges.append(np.zeros(0, dtype=np.int64))
+            continue
+        column = points[:, axis]
+        ends = (np.array([column.min(), column.max()], dtype=np.float64) + 1.0) * (count / 2.0) - 0.5
+        low, high = np.clip(np.floor(ends) + (-1, 2), 0, count - 1).astype(np.int64)
+        ranges.append(np.arange(low, high + 1))
+    return np.ravel_multi_index(np.meshgrid(*ranges, indexing="ij"), tuple(int(n) for n in resolution)).ravel()
+
+
 def probe_lights(matrices, light) -> np.ndarray:
     """(P, 3, R) the SH of the radiance arriving at each probe from the distant light (3, n²): T_p L, one product
     per probe, each channel through its own matrix where they are coloured (matrices (P, C, R, n²), C = 1 or 3; R

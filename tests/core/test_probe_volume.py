@@ -244,6 +244,20 @@ def test_shade_points_reads_the_rows_it_is_given_of_a_larger_transfer():
                                   probe_grid.shade_points(transfer[rows], lights, indices, weights))
 
 
+@pytest.mark.parametrize("resolution", [(16, 12, 10), (1, 6, 2)])
+def test_the_probes_spanned_hold_every_probe_around_every_point(resolution):
+    """Every probe trilinear_weights picks for a cluster of points, once each; on a fine lattice, a few of all."""
+    rng = np.random.default_rng(resolution[0])
+    for centre in ((0.0, 0.0, 0.0), (0.8, -0.7, 0.9), (-1.2, 0.3, 0.0)):
+        points = (rng.normal(centre, 0.05, (400, 3))).astype(np.float32)
+        indices, _ = probe_grid.trilinear_weights(points, resolution, np.ones(np.prod(resolution), dtype=bool))
+        spanned = probe_grid.probes_spanned(points, resolution)
+        assert set(indices.ravel().tolist()) <= set(spanned.tolist())
+        assert len(spanned) == len(set(spanned.tolist()))
+        if resolution[0] > 1:
+            assert len(spanned) < np.prod(resolution) / 4
+
+
 def test_shade_points_of_no_points():
     shown = probe_grid.shade_points(np.zeros((0, SIZE)), np.ones((8, 3, SIZE)), np.zeros((0, 8), dtype=int),
                                     np.zeros((0, 8)))
