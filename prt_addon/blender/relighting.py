@@ -266,15 +266,15 @@ def dynamic_radiance(ob, placed, baked, points, light, probes) -> np.ndarray | N
     Each point is shaded from the light arriving at it, Σ w_p T_p L, turned into the object's frame; the lights T_p L
     of the probes around the object come at most once per light change (probe_volumes.lights) and are turned before
     they are blended (a rotation is linear), those the points reach only, so a point costs its share of one product
-    per cell (core.probe_grid.shade_points). A point outside
-    every volume gets the distant light. Lights are fitted to the transfer's order (core.sh.fitted)."""
+    per cell (core.probe_grid.shade_points). A point outside every volume gets the distant light. Lights are fitted
+    to the transfer's order (core.sh.fitted)."""
     probes = [found for found in probes if found.order ** 2 == light.shape[-1]]
     if points is None or probe_light_of(ob) != "vertex" or not probes:
         return None
     which, local = probe_volumes.containing(probes, points, np.array(placed.matrix_world, dtype=np.float64))
     turn = np.array(placed.matrix_world.to_quaternion().to_matrix(), dtype=np.float64).T
     size = baked.transfer.shape[-1]
-    through = [index for index in np.flatnonzero(np.bincount(which + 1, minlength=len(probes) + 1)) - 1]
+    through = np.flatnonzero(np.bincount(which + 1, minlength=len(probes) + 1)) - 1
     radiance = np.empty((len(points), 3), dtype=np.float32)
     for index in through:  # −1: outside every volume
         rows = None if len(through) == 1 else np.flatnonzero(which == index)  # the usual case: one volume, no copies
