@@ -65,10 +65,8 @@ def trilinear_weights(local_points, resolution, valid) -> tuple[np.ndarray, np.n
     base = np.zeros(len(points), dtype=np.int32)  # half the memory of intp, and it indexes as well
     sides, steps = [], []
     for axis, count in enumerate(resolution):
-        # The point in probe units: probe i sits at i, the lattice spans 0..n−1; clamped onto it.
-        grid = points[:, axis] * points.dtype.type(count / 2.0)
-        grid += points.dtype.type(count / 2.0 - 0.5)
-        np.clip(grid, 0.0, count - 1, out=grid)
+        grid = _probe_units(points[:, axis], count)
+        np.clip(grid, 0.0, count - 1, out=grid)  # clamped onto the lattice
         low = np.minimum(np.floor(grid), max(count - 2, 0))
         fraction = grid - low
         low = low.astype(np.int32)
@@ -105,6 +103,15 @@ def trilinear_weights(local_points, resolution, valid) -> tuple[np.ndarray, np.n
     return indices.T.reshape(shape + (8,)), weights.T.reshape(shape + (8,))
 
 
+def _probe_units(coordinates, count: int) -> np.ndarray:
+    """Coordinates along a volume axis of `count` probes ([−1, 1]) in probe units: probe i sits at i, the lattice
+    spans 0..count−1. In the coordinates' own precision (float32 for a moving object's vertices)."""
+    dtype = np.asarray(coordinates).dtype.type
+    units = coordinates * dtype(count / 2.0)
+    units += dtype(count / 2.0 - 0.5)
+    return units
+
+
 def probes_spanned(local_points, resolution) -> np.ndarray:
     """(K,) the probes of the box of lattice cells that holds points (N, 3) in the volume's frame, one probe wider on
     every side: at least the 8 around each point (trilinear_weights), found from each axis' least and greatest
@@ -116,7 +123,7 @@ def probes_spanned(local_points, resolution) -> np.ndarray:
             ranges.append(np.zeros(0, dtype=np.int64))
             continue
         column = points[:, axis]
-        ends = (np.array([column.min(), column.max()], dtype=np.float64) + 1.0) * (count / 2.0) - 0.5
+        ends = _probe_units(np.array([column.min(), column.max()], dtype=column.dtype), count)
         low, high = np.clip(np.floor(ends) + (-1, 2), 0, count - 1).astype(np.int64)
         ranges.append(np.arange(low, high + 1))
     return np.ravel_multi_index(np.meshgrid(*ranges, indexing="ij"), tuple(int(n) for n in resolution)).ravel()
